@@ -1,0 +1,172 @@
+"""Algorithms: pure functions of arrays with declared inputs, outputs and typed parameters.
+
+An algorithm plugin subclasses :class:`Algorithm`. The framework reads the inputs (from a session
+file, CSV files or arrays handed over by a script), validates the parameters, calls
+:meth:`Algorithm.run` with a :class:`RunContext` for progress and cancellation, and stores what
+it returns with its provenance. Because ``run`` sees only arrays and plain values, the same
+algorithm runs from the CLI, a recipe step, the TUI, a Python script or a worker process of a
+batch engine, without change.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .errors import AlgorithmError, MirrorlabError
+from .params import ParameterSet
+
+
+@dataclass(frozen=True)
+class Port:
+    """One declared input or output of an algorithm.
+
+    Attributes
+    ----------
+    name
+        Key in the ``inputs`` / returned mapping; dataset name under the result group.
+    description
+        What it holds, with its shape, e.g. ``"(frames, markers, 3) marker positions"``.
+    unit
+        Unit of the values (``"mm"``, ``"px"``, ``"rad/s"``...).
+    optional
+        Inputs only: the algorithm can run without it.
+    """
+
+    name: str
+    description: str = ""
+    unit: str = ""
+    optional: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "description": self.description, "unit": self.unit,
+                "optional": self.optional}
+
+
+class Cancelled(MirrorlabError):
+    """The run was cancelled through its :class:`RunContext`."""
+
+
+class RunContext:
+    """Given to :meth:`Algorithm.run`: report progress, check for cancellation.
+
+    Parameters
+    ----------
+    progress
+        Called as ``progress(done, total, message)``; ``None`` to ignore progress.
+    cancel
+        An event that, once set, makes :meth:`check_cancelled` raise :class:`Cancelled`.
+    """
+
+    def __init__(self, progress: Callable[[float, float | None, str], None] | None = None,
+                 cancel: threading.Event | None = None) -> None:
+        self._progress = progress
+        self.cancel = cancel or threading.Event()
+
+    def progress(self, done: float, total: float | None = None, message: str = "") -> None:
+        """Report ``done`` of ``total`` units of work; also checks for cancellation."""
+        self.check_cancelled()
+        if self._progress is not None:
+            self._progress(done, total, message)
+
+    def check_cancelled(self) -> None:
+        if self.cancel.is_set():
+            raise Cancelled("the run was cancelled")
+
+
+class Algorithm(ABC):
+    """Base class of algorithm plugins.
+
+    Subclasses declare ``name``, ``version``, ``description``, ``parameters``, ``inputs`` and
+    ``outputs`` as class attributes and implement :meth:`run`.
+    """
+
+    name: ClassVar[str]
+    version: ClassVar[str]
+    description: ClassVar[str]
+    parameters: ClassVar[ParameterSet] = ParameterSet()
+    inputs: ClassVar[tuple[Port, ...]] = ()
+    outputs: ClassVar[tuple[Port, ...]] = ()
+
+    @abstractmethod
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any],
+            context: RunContext) -> dict[str, Any]:
+        """Compute the outputs from ``inputs`` (arrays) and validated ``params``.
+
+        Returns a mapping of output name to array or scalar; every declared output must be
+        present. Raise an :class:`~mirrorlab.core.errors.AlgorithmError` subclass naming the
+        frame or marker on degenerate input.
+        """
+
+    @classmethod
+    def describe(cls) -> dict[str, Any]:
+        return {
+            "name": cls.name,
+            "version": cls.version,
+            "description": cls.description,
+            "parameters": cls.parameters.describe(),
+            "inputs": [p.describe() for p in cls.inputs],
+            "outputs": [p.describe() for p in cls.outputs],
+        }
+
+
+@dataclass
+class RunOutcome:
+    """What :func:`execute` returns: outputs or the error, and the parameters as validated."""
+
+    outputs: dict[str, Any]
+    params: dict[str, Any]
+    status: str
+    error: str = ""
+    traceback: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params: Mapping[str, Any],
+            context: RunContext | None = None) -> RunOutcome:
+    """Validate ``params`` and ``inputs``, run ``algorithm``, check its outputs.
+
+    Free of global state: safe to call in another process on copies of the inputs.
+    Validation errors raise; failures inside ``run`` are returned as ``status="failed"``.
+    """
+    values = algorithm.parameters.validate(dict(params), where=f"{algorithm.name}.parameters")
+    missing = [p.name for p in algorithm.inputs if not p.optional and p.name not in inputs]
+    if missing:
+        raise AlgorithmError(f"{algorithm.name} needs the input(s) {', '.join(missing)}; "
+                             f"it takes: {', '.join(p.name for p in algorithm.inputs)}")
+    unknown = set(inputs) - {p.name for p in algorithm.inputs}
+    if unknown:
+        raise AlgorithmError(f"{algorithm.name} does not take the input(s) {', '.join(sorted(unknown))}; "
+                             f"it takes: {', '.join(p.name for p in algorithm.inputs)}")
+    context = context or RunContext()
+    try:
+        outputs = algorithm().run(inputs, values, context)
+    except Cancelled as exc:
+        return RunOutcome({}, values, "failed", str(exc))
+    except Exception as exc:  # recorded in the result group, never lost
+        return RunOutcome({}, values, "failed", f"{type(exc).__name__}: {exc}", traceback.format_exc())
+    absent = [p.name for p in algorithm.outputs if p.name not in outputs]
+    if absent:
+        return RunOutcome({}, values, "failed",
+                          f"{algorithm.name} did not return the declared output(s) {', '.join(absent)}")
+    return RunOutcome(dict(outputs), values, "ok")
+
+
+@dataclass(frozen=True)
+class ResultRef:
+    """Where one algorithm run is stored: ``/results/<algorithm>/<run_id>``."""
+
+    algorithm: str
+    run_id: str
+    status: str
+    error: str = ""
+
+    @property
+    def path(self) -> str:
+        return f"/results/{self.algorithm}/{self.run_id}"

@@ -1,0 +1,132 @@
+"""``mirrorlab plugins``: list, inspect and diagnose plugins."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from ..registry import KINDS, get_registry
+
+
+def add(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plugins", help="list installed plugins, instruments, algorithms and steps")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=list_plugins)
+    psub = p.add_subparsers(dest="plugins_command", metavar="SUBCOMMAND")
+    d = psub.add_parser("doctor", help="entry points, import errors, hook validation, simulators, versions")
+    d.add_argument("--json", action="store_true")
+    d.set_defaults(func=doctor)
+    s = psub.add_parser("show", help="one instrument, algorithm or step with its typed parameters")
+    s.add_argument("name")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=show)
+
+
+def _describe(kind: str, cls: Any) -> dict[str, Any]:
+    if hasattr(cls, "describe") and kind == "algorithm":
+        return cls.describe()
+    out = {"name": cls.name, "version": cls.version, "description": cls.description,
+           "parameters": cls.parameters.describe()}
+    if kind == "instrument":
+        out["simulator"] = getattr(cls, "simulator", None) is not None
+    return out
+
+
+def inventory() -> dict[str, Any]:
+    reg = get_registry()
+    out: dict[str, Any] = {}
+    for kind in KINDS:
+        items = []
+        for name in reg.names(kind):
+            providers = reg.providers(kind, name)
+            for prov in providers:
+                entry = _describe(kind, prov.cls)
+                entry["plugin"] = prov.plugin
+                items.append(entry)
+        out[kind + "s"] = items
+    out["plugins"] = [{"name": p.name, "source": p.source, "distribution": p.distribution, "version": p.version,
+                       "ok": p.ok, "error": p.error, "provides": p.provides} for p in reg.plugins.values()]
+    out["conflicts"] = reg.conflicts()
+    return out
+
+
+def list_plugins(args: argparse.Namespace) -> int:
+    data = inventory()
+    if args.json:
+        print(json.dumps(data, indent=2, default=str))
+        return 0
+    for kind in KINDS:
+        print(f"{kind}s:")
+        for item in data[kind + "s"]:
+            print(f"  {item['name']:<22} {item['version']:<8} {item['description']}  [{item['plugin']}]")
+        if not data[kind + "s"]:
+            print("  (none)")
+    broken = [p for p in data["plugins"] if not p["ok"]]
+    if broken or data["conflicts"]:
+        print("problems (details: mirrorlab plugins doctor):")
+        for p in broken:
+            print(f"  BROKEN {p['name']}: {p['error']}")
+        for c in data["conflicts"]:
+            print(f"  CONFLICT {c}")
+    return 0
+
+
+def doctor(args: argparse.Namespace) -> int:
+    reg = get_registry()
+    rows = []
+    for p in reg.plugins.values():
+        simulators = {}
+        for name in p.provides.get("instrument", []):
+            cls = reg.providers("instrument", name)[0].cls
+            simulators[name] = getattr(cls, "simulator", None) is not None
+        rows.append({"name": p.name, "entry_point": p.source, "distribution": p.distribution,
+                     "version": p.version, "ok": p.ok, "error": p.error, "traceback": p.traceback,
+                     "provides": p.provides, "simulators": simulators})
+    conflicts = reg.conflicts()
+    if args.json:
+        print(json.dumps({"plugins": rows, "conflicts": conflicts}, indent=2))
+    else:
+        for r in rows:
+            state = "ok" if r["ok"] else "BROKEN"
+            print(f"{r['name']} [{state}]  entry point: {r['entry_point']}"
+                  + (f"  ({r['distribution']} {r['version']})" if r["distribution"] else ""))
+            for kind, names in r["provides"].items():
+                print(f"    {kind}s: {', '.join(names)}")
+            for name, has in r["simulators"].items():
+                print(f"    simulator for {name}: {'yes' if has else 'no'}")
+            if not r["ok"]:
+                print(f"    error: {r['error']}")
+                print("    " + r["traceback"].rstrip().replace("\n", "\n    "))
+        for c in conflicts:
+            print(f"CONFLICT: {c}")
+    return 1 if conflicts or any(not r["ok"] for r in rows) else 0
+
+
+def show(args: argparse.Namespace) -> int:
+    reg = get_registry()
+    for kind in KINDS:
+        if reg.providers(kind, args.name):
+            info = _describe(kind, reg.get(kind, args.name))
+            if args.json:
+                print(json.dumps(info, indent=2, default=str))
+                return 0
+            print(f"{kind} {info['name']} {info['version']}: {info['description']}")
+            for p in info["parameters"]:
+                extra = []
+                if p["unit"]:
+                    extra.append(p["unit"])
+                if p["bounds"]:
+                    extra.append(f"{p['bounds'][0]}..{p['bounds'][1]}")
+                if p["choices"]:
+                    extra.append("|".join(map(str, p["choices"])))
+                default = "required" if p["required"] else f"default {p['default']!r}"
+                print(f"  {p['name']:<16} {p['type']:<6} {default:<20} {' '.join(extra):<18} {p['help']}")
+            for port in info.get("inputs", []):
+                print(f"  input  {port['name']}: {port['description']}")
+            for port in info.get("outputs", []):
+                print(f"  output {port['name']}: {port['description']}")
+            return 0
+    from ..errors import PluginError
+
+    raise PluginError(f"nothing named {args.name!r}; `mirrorlab plugins` lists what is installed")

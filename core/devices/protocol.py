@@ -1,0 +1,230 @@
+"""The line protocol driver shared by every mirrorlab serial instrument (spec ``instruments.md`` §0.2).
+
+Rules it enforces: one command at a time; each command ends with exactly one terminal line,
+``OK[ fields]`` or ``ERR <code> <text>``; data lines start with an upper-case tag; unsolicited lines
+start with ``!`` and arrive only between complete lines. A reader thread owns the port's input: it
+splits lines, hands ``!`` lines to ``on_unsolicited`` and queues the rest for the command waiting
+on them. Every wait has a timeout; bytes that break the rules raise :class:`ProtocolError`.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import serial
+
+from ..errors import DeviceDisconnected, DeviceReplyError, DeviceTimeout, ProtocolError
+
+log = logging.getLogger(__name__)
+
+MAX_COMMAND = 200
+ABORT_BYTE = b"\x18"
+
+
+@dataclass
+class Reply:
+    """A complete reply: the terminal line's fields after ``OK`` and the data lines before it."""
+
+    fields: list[str]
+    data: list[str] = field(default_factory=list)
+
+    def field(self, i: int, name: str = "field") -> str:
+        try:
+            return self.fields[i]
+        except IndexError:
+            raise ProtocolError(f"reply OK {' '.join(self.fields)!r} lacks {name} (position {i})") from None
+
+
+class _Hangup:
+    """Queued by the reader when the port fails, so a waiting command learns at once."""
+
+    def __init__(self, error: Exception) -> None:
+        self.error = error
+
+
+class LineClient:
+    """Command/reply client over an open pyserial port.
+
+    Parameters
+    ----------
+    port
+        An open pyserial port (from :func:`~mirrorlab.core.devices.transport.open_port`); its read
+        timeout should be short (~50 ms): it only bounds how fast the reader notices a stop.
+    device
+        Name used in error messages (``"film_scanner 'cam' on /dev/ttyUSB0"``).
+    timeout
+        Default seconds to wait for a command's terminal line.
+    on_unsolicited
+        Called from the reader thread with each ``!`` line (without the ``!``).
+    """
+
+    def __init__(self, port: serial.SerialBase, device: str = "device", timeout: float = 2.0,
+                 on_unsolicited: Callable[[str], None] | None = None) -> None:
+        self.port = port
+        self.device = device
+        self.timeout = timeout
+        self.on_unsolicited = on_unsolicited
+        self.garbage_lines = 0
+        self._abort_sent = False
+        self._lines: queue.Queue[str | _Hangup] = queue.Queue()
+        self._lock = threading.Lock()  # one command at a time
+        self._stop = threading.Event()
+        self._reader = threading.Thread(target=self._read_loop, name=f"reader {device}", daemon=True)
+        self._reader.start()
+
+    # -- reader thread -----------------------------------------------------------------------
+    def _read_loop(self) -> None:
+        buf = b""
+        while not self._stop.is_set():
+            try:
+                chunk = self.port.read(self.port.in_waiting or 1)
+            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+                if not self._stop.is_set():
+                    self._lines.put(_Hangup(exc))
+                return
+            if not chunk:
+                continue
+            buf += chunk
+            while b"\n" in buf:
+                raw, buf = buf.split(b"\n", 1)
+                self._dispatch(raw.rstrip(b"\r"))
+            if len(buf) > 65536:  # no newline in 64 KiB: garbage, not a line
+                self._dispatch(buf)
+                buf = b""
+
+    def _dispatch(self, raw: bytes) -> None:
+        try:
+            line = raw.decode("ascii")
+        except UnicodeDecodeError:
+            self.garbage_lines += 1
+            line = "\x00" + raw.decode("latin-1")  # marked: never a valid reply
+        if line.startswith("!"):
+            if self.on_unsolicited is not None:
+                try:
+                    self.on_unsolicited(line[1:])
+                except Exception:  # a consumer's bug must not kill the reader
+                    log.exception("%s: unsolicited-line handler failed on %r", self.device, line)
+            return
+        self._lines.put(line)
+
+    # -- commands ------------------------------------------------------------------------------
+    def query(self, command: str, timeout: float | None = None) -> Reply:
+        """Send ``command`` and return its reply.
+
+        Raises
+        ------
+        DeviceTimeout
+            No terminal line within ``timeout`` seconds.
+        DeviceReplyError
+            The device answered ``ERR <code> <text>``.
+        ProtocolError
+            The device sent garbage or a line of the wrong shape.
+        DeviceDisconnected
+            The port failed or was closed.
+        """
+        if len(command) > MAX_COMMAND or "\n" in command:
+            raise ValueError(f"command too long or multi-line: {command[:40]!r}...")
+        timeout = self.timeout if timeout is None else timeout
+        with self._lock:
+            self._drain_stale()
+            self._write(command.encode("ascii") + b"\n")
+            return self._collect(command, timeout)
+
+    def abort(self) -> None:
+        """Abort the running command (its ``query`` raises ``E09 aborted``), or send ``ABORT``.
+
+        The device answers the running command ``ERR E09 aborted`` and then ABORT's own ``OK``;
+        the waiting :meth:`query` consumes both so the next command starts clean.
+        """
+        if self._lock.acquire(blocking=False):
+            try:
+                self._drain_stale()
+                self._write(b"ABORT\n")
+                self._collect("ABORT", self.timeout)
+            finally:
+                self._lock.release()
+            return
+        self._abort_sent = True
+        self._write(ABORT_BYTE)
+
+    def _write(self, data: bytes) -> None:
+        try:
+            self.port.write(data)
+            self.port.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise DeviceDisconnected(f"{self.device}: write failed ({exc}); check the cable and power") from exc
+
+    def _drain_stale(self) -> None:
+        while True:
+            try:
+                item = self._lines.get_nowait()
+            except queue.Empty:
+                return
+            if isinstance(item, _Hangup):
+                raise DeviceDisconnected(f"{self.device}: connection lost ({item.error}); "
+                                         "check the cable and power, then reconnect") from item.error
+            log.warning("%s: discarding stale line %r", self.device, item)
+
+    def _collect(self, command: str, timeout: float) -> Reply:
+        deadline = time.monotonic() + timeout
+        data: list[str] = []
+        while True:
+            remaining = deadline - time.monotonic()
+            try:
+                item = self._lines.get(timeout=max(0.0, remaining))
+            except queue.Empty:
+                raise DeviceTimeout(
+                    f"{self.device} did not answer {command!r} within {timeout:g} s: check that it "
+                    "is powered and connected, the baud rate, and that the port is the device's"
+                ) from None
+            if isinstance(item, _Hangup):
+                raise DeviceDisconnected(f"{self.device}: connection lost during {command!r} ({item.error}); "
+                                         "check the cable and power, then reconnect") from item.error
+            if item == "OK" or item.startswith("OK "):
+                return Reply(item.split()[1:], data)
+            if item.startswith("ERR "):
+                parts = item.split(" ", 2)
+                code = parts[1] if len(parts) > 1 else "E??"
+                if code == "E09" and self._abort_sent:
+                    self._abort_sent = False
+                    self._collect("ABORT", timeout)  # ABORT's own OK follows the E09
+                raise DeviceReplyError(command, code, parts[2] if len(parts) > 2 else "", self.device)
+            if item[:1].isupper() and item.isprintable():
+                data.append(item)
+                continue
+            self.garbage_lines += 1
+            self.resync()
+            raise ProtocolError(
+                f"{self.device} sent garbage in reply to {command!r}: {item[:60]!r}. Check the baud "
+                "rate and cable; electrical noise or a wrong device on this port give this"
+            )
+
+    def resync(self, quiet: float = 0.1) -> None:
+        """Discard input until the line has been quiet for ``quiet`` seconds."""
+        while True:
+            try:
+                item = self._lines.get(timeout=quiet)
+            except queue.Empty:
+                return
+            if isinstance(item, _Hangup):
+                self._lines.put(item)
+                return
+
+    @property
+    def alive(self) -> bool:
+        return self._reader.is_alive()
+
+    def close(self) -> None:
+        """Stop the reader and close the port (idempotent)."""
+        self._stop.set()
+        try:
+            self.port.close()
+        except (serial.SerialException, OSError):
+            pass
+        if self._reader is not threading.current_thread():
+            self._reader.join(timeout=1.0)

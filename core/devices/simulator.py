@@ -1,0 +1,354 @@
+"""Simulators: device models that speak an instrument's line protocol over a real byte stream.
+
+A :class:`LineSimulator` is the device model. It implements the common commands of
+``instruments.md`` §0.2 (``*IDN?``, ``PING``, ``*RST``, ``STAT?``, ``TIME?``, ``STREAM``, ``ERR?``
+and the ``SIM:`` commands) and dispatches the rest to ``cmd_<WORD>`` methods of the subclass. A
+handler is a generator: it yields reply lines (data lines, then the terminal line) and may yield
+:class:`Delay` to model time. The :class:`SimulatorServer` runs the model in a thread on a
+pseudo-terminal or TCP endpoint, sleeps through delays in real-time mode (``SIM:CLOCK REAL``) or
+only advances the simulated clock (``SIM:CLOCK FAST``), and between yielded lines watches for
+``ABORT`` so a running command can be aborted as the protocol requires.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from .transport import Endpoint, PtyEndpoint, TcpEndpoint
+
+log = logging.getLogger(__name__)
+
+Lines = Iterator["str | Delay"]
+
+
+@dataclass(frozen=True)
+class Delay:
+    """Simulated time spent by a command, in seconds."""
+
+    seconds: float
+
+
+class CommandError(Exception):
+    """Raised inside a handler to answer ``ERR <code> <text>``."""
+
+    def __init__(self, code: str, text: str) -> None:
+        super().__init__(f"{code} {text}")
+        self.code = code
+        self.text = text
+
+
+class LineSimulator:
+    """Base device model. Subclasses set the identity attributes and add ``cmd_*`` handlers.
+
+    Handler names: the command word upper-cased with ``*``, ``?`` and ``:`` replaced
+    (``THR?`` → ``cmd_THR_Q``, ``SIM:TRUTH?`` → ``cmd_SIM_TRUTH_Q``). Handlers receive the argument
+    words and yield lines; raising :class:`CommandError` answers ``ERR``.
+    """
+
+    kind = "GENERIC"
+    vendor = "mirrorlab"
+    model = "SIM"
+    firmware = "1.0"
+    serial_number = "0001"
+
+    def __init__(self, seed: int = 0) -> None:
+        self.seed = seed
+        self.fast = False
+        self.clock_ms = 0.0
+        self.streaming = False
+        self.faults: dict[str, list[str]] = {}
+        self.flags: set[str] = set()
+        self.last_error = ("E00", "none")
+        self.rng = random.Random(seed)
+        self.reset()
+
+    # -- state -----------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Power-on state of the device model (subclasses extend and call super)."""
+        self.streaming = False
+        self.flags = set()
+        self.last_error = ("E00", "none")
+
+    @property
+    def state(self) -> str:
+        return "IDLE"
+
+    def advance(self, seconds: float) -> None:
+        """Advance the simulated clock (the server calls this; subclasses may extend)."""
+        self.clock_ms += seconds * 1000.0
+
+    def stream_lines(self) -> list[str]:
+        """Unsolicited ``!`` lines due now while streaming (subclasses override)."""
+        return []
+
+    def raise_fault(self, code: str, text: str) -> str:
+        """Record a fault arising outside a command; return the ``!ERR`` line to send."""
+        self.last_error = (code, text)
+        return f"!ERR {code} {text}"
+
+    # -- dispatch --------------------------------------------------------------------------------
+    @staticmethod
+    def handler_name(word: str) -> str:
+        return "cmd_" + word.upper().replace("*", "").replace("?", "_Q").replace(":", "_")
+
+    def handle(self, line: str) -> Lines:
+        words = line.split()
+        if not words:
+            raise CommandError("E02", "empty command")
+        handler = getattr(self, self.handler_name(words[0]), None)
+        if handler is None:
+            raise CommandError("E01", f"unknown command {words[0]}")
+        return handler(words[1:])
+
+    @staticmethod
+    def expect(args: list[str], n: int, usage: str) -> None:
+        if len(args) != n:
+            raise CommandError("E02", f"usage: {usage}")
+
+    @staticmethod
+    def number(text: str, lo: float, hi: float, integer: bool = True) -> float:
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            raise CommandError("E02", f"not a number: {text}") from None
+        if not lo <= value <= hi:
+            raise CommandError("E03", f"{text} outside {lo:g}..{hi:g}")
+        return value
+
+    # -- common commands (§0.2) ------------------------------------------------------------------
+    def cmd_IDN_Q(self, args: list[str]) -> Lines:
+        yield f"OK {self.kind} {self.vendor} {self.model} {self.firmware} {self.serial_number}"
+
+    def cmd_PING(self, args: list[str]) -> Lines:
+        yield "OK PONG"
+
+    def cmd_RST(self, args: list[str]) -> Lines:
+        self.reset()
+        yield "OK"
+
+    def cmd_STAT_Q(self, args: list[str]) -> Lines:
+        yield f"OK {self.state} {','.join(sorted(self.flags)) or '-'}"
+
+    def cmd_TIME_Q(self, args: list[str]) -> Lines:
+        yield f"OK {int(self.clock_ms)}"
+
+    def cmd_STREAM(self, args: list[str]) -> Lines:
+        self.expect(args, 1, "STREAM ON|OFF")
+        if args[0].upper() not in ("ON", "OFF"):
+            raise CommandError("E02", "usage: STREAM ON|OFF")
+        self.streaming = args[0].upper() == "ON"
+        yield "OK"
+
+    def cmd_ERR_Q(self, args: list[str]) -> Lines:
+        yield f"OK {self.last_error[0]} {self.last_error[1]}"
+
+    def cmd_ABORT(self, args: list[str]) -> Lines:
+        yield "OK"
+
+    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
+        self.expect(args, 1, "SIM:SEED <n>")
+        self.seed = int(self.number(args[0], 0, 2**63))
+        self.rng = random.Random(self.seed)
+        yield "OK"
+
+    def cmd_SIM_CLOCK(self, args: list[str]) -> Lines:
+        self.expect(args, 1, "SIM:CLOCK REAL|FAST")
+        if args[0].upper() not in ("REAL", "FAST"):
+            raise CommandError("E02", "usage: SIM:CLOCK REAL|FAST")
+        self.fast = args[0].upper() == "FAST"
+        yield "OK"
+
+    def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
+        if not args:
+            raise CommandError("E02", "usage: SIM:FAULT <name> <value...> | CLEAR")
+        if args[0].upper() == "CLEAR":
+            self.faults.clear()
+        else:
+            name = args[0].upper()
+            if name not in self.fault_names():
+                raise CommandError("E03", f"unknown fault {name}; known: {' '.join(self.fault_names()) or '-'}")
+            self.faults[name] = args[1:]
+        yield "OK"
+
+    def cmd_SIM_FAULT_Q(self, args: list[str]) -> Lines:
+        for name, values in sorted(self.faults.items()):
+            yield f"FAULT {name} {' '.join(values) or '-'}"
+        yield "OK"
+
+    def cmd_SIM_TRUTH_Q(self, args: list[str]) -> Lines:
+        for line in self.truth_lines():
+            yield f"TRUTH {line}"
+        yield "OK"
+
+    def fault_names(self) -> tuple[str, ...]:
+        """Names accepted by ``SIM:FAULT`` (subclasses override)."""
+        return ()
+
+    def truth_lines(self) -> list[str]:
+        """Ground-truth quantities for ``SIM:TRUTH?`` (subclasses override)."""
+        return []
+
+    def fault_value(self, name: str, index: int = 0, default: float = 0.0) -> float:
+        values = self.faults.get(name)
+        return float(values[index]) if values and len(values) > index else default
+
+
+class SimulatorServer:
+    """Serve a :class:`LineSimulator` on a pty (default) or TCP endpoint from a daemon thread.
+
+    Use as a context manager::
+
+        with SimulatorServer(MyModel(seed=1)) as server:
+            driver = MyInstrument("dev", port=server.url)
+
+    ``server.endpoint.faults`` injects transport faults; :meth:`disconnect` simulates unplugging.
+    """
+
+    def __init__(self, model: LineSimulator, transport: str = "pty", link_dir: Path | None = None) -> None:
+        self.model = model
+        self._tmpdir = None
+        if transport == "pty":
+            if link_dir is None:
+                self._tmpdir = tempfile.TemporaryDirectory(prefix="mirrorlab-sim-")
+                link_dir = Path(self._tmpdir.name)
+            self.endpoint: Endpoint = PtyEndpoint(Path(link_dir) / f"tty{model.kind}", seed=model.seed)
+        elif transport == "tcp":
+            self.endpoint = TcpEndpoint(seed=model.seed)
+        else:
+            raise ValueError(f"transport must be 'pty' or 'tcp', not {transport!r}")
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, name=f"simulator {model.kind}", daemon=True)
+        self._pending = b""
+        self.lock = threading.RLock()  # held while the model changes; tests may hold it to inspect
+
+    @property
+    def url(self) -> str:
+        return self.endpoint.url
+
+    def start(self) -> "SimulatorServer":
+        self._thread.start()
+        return self
+
+    def __enter__(self) -> "SimulatorServer":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def disconnect(self) -> None:
+        """Drop the current connection, as if the device were unplugged and plugged in again."""
+        with self.lock:
+            self.endpoint.disconnect()
+            self._pending = b""
+
+    def close(self) -> None:
+        self._stop.set()
+        self.endpoint.faults.stall = False
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.endpoint.close()
+        if self._tmpdir is not None:
+            self._tmpdir.cleanup()
+
+    # -- serving ---------------------------------------------------------------------------------
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            if not self.endpoint.wait_connection(self._stop):
+                return
+            self._serve_connection()
+
+    def _send(self, line: str) -> None:
+        self.endpoint.send(line.encode("ascii") + b"\n")
+
+    def _next_line(self, timeout: float) -> str | None:
+        """The next complete command line, ``""`` on timeout, ``None`` if the driver hung up."""
+        while b"\n" not in self._pending and b"\x18" not in self._pending:
+            data = self.endpoint.recv(timeout)
+            if data is None:
+                return None
+            if not data:
+                return ""
+            self._pending += data
+        if self._pending.startswith(b"\x18"):
+            self._pending = self._pending[1:]
+            return "ABORT"
+        raw, _, self._pending = self._pending.partition(b"\n")
+        return raw.rstrip(b"\r").replace(b"\x18", b"").decode("ascii", errors="replace")
+
+    def _abort_requested(self) -> bool:
+        data = self.endpoint.recv(0)
+        if data:
+            self._pending += data
+        if b"\x18" in self._pending:
+            self._pending = self._pending.replace(b"\x18", b"", 1)
+            return True
+        lines = self._pending.split(b"\n")
+        for i, raw in enumerate(lines[:-1]):
+            if raw.strip().upper() == b"ABORT":
+                del lines[i]
+                self._pending = b"\n".join(lines)
+                return True
+        return False
+
+    def _serve_connection(self) -> None:
+        last_tick = time.monotonic()
+        while not self._stop.is_set():
+            line = self._next_line(timeout=0.01)
+            if line is None:
+                self.endpoint.disconnect()
+                return
+            now = time.monotonic()
+            with self.lock:
+                # Idle time passes in both clock modes; FAST only skips the Delays of commands.
+                self.model.advance(now - last_tick)
+                last_tick = now
+                if self.endpoint.faults.stall:
+                    continue
+                if line:
+                    self._run_command(line)
+                    last_tick = time.monotonic()
+                if self.model.streaming:
+                    for s in self.model.stream_lines():
+                        self._send(s)
+
+    def _run_command(self, line: str) -> None:
+        model = self.model
+        if line.strip().upper() == "ABORT":
+            self._send("OK")
+            return
+        try:
+            for item in model.handle(line):
+                if isinstance(item, Delay):
+                    model.advance(item.seconds)
+                    if not model.fast:
+                        self._sleep_watching_abort(item.seconds)
+                    if self._abort_requested():
+                        model.last_error = ("E09", "aborted")
+                        self._send("ERR E09 aborted")
+                        self._send("OK")
+                        return
+                else:
+                    self._send(item)
+        except CommandError as exc:
+            model.last_error = (exc.code, exc.text)
+            self._send(f"ERR {exc.code} {exc.text}")
+        except Exception as exc:  # a model bug answers like firmware would: a hardware fault
+            log.exception("simulator %s failed on %r", model.kind, line)
+            model.last_error = ("E08", f"simulator fault {type(exc).__name__}")
+            self._send(f"ERR E08 simulator fault {type(exc).__name__}: {exc}"[:200])
+
+    def _sleep_watching_abort(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while (remaining := end - time.monotonic()) > 0 and not self._stop.is_set():
+            data = self.endpoint.recv(min(remaining, 0.02))
+            if data:
+                self._pending += data
+                if b"\x18" in self._pending or b"ABORT" in self._pending.upper():
+                    return

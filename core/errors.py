@@ -1,0 +1,83 @@
+"""Typed errors shared by every part of mirrorlab.
+
+Every error message says what went wrong *and* what to do about it. Algorithm packages derive
+their own errors from :class:`MirrorlabError` (for example ``mirrorlab.plugins.photogrammetry``'s
+``CalibrationError``) so that the CLI can report any of them as one clear line.
+"""
+
+from __future__ import annotations
+
+
+class MirrorlabError(Exception):
+    """Base class of every error mirrorlab raises on purpose."""
+
+
+class ValidationError(MirrorlabError):
+    """Input (a recipe, parameters, a CLI option) failed validation.
+
+    ``problems`` holds one :class:`Problem` per defect so that all of them can be reported at once.
+    """
+
+    def __init__(self, problems: list["Problem"]) -> None:
+        self.problems = list(problems)
+        super().__init__("\n".join(str(p) for p in self.problems))
+
+
+class Problem:
+    """One validation defect: where it is (file, key path) and why it is wrong."""
+
+    __slots__ = ("file", "key", "reason")
+
+    def __init__(self, key: str, reason: str, file: str | None = None) -> None:
+        self.file = file
+        self.key = key
+        self.reason = reason
+
+    def __str__(self) -> str:
+        where = f"{self.file}: " if self.file else ""
+        return f"{where}{self.key}: {self.reason}"
+
+    def __repr__(self) -> str:
+        return f"Problem({self.key!r}, {self.reason!r}, file={self.file!r})"
+
+
+class PluginError(MirrorlabError):
+    """A plugin could not be found, loaded or registered, or two plugins claim one name."""
+
+
+class DuplicateNameError(PluginError):
+    """Two providers register the same instrument, algorithm or step name."""
+
+
+class SessionError(MirrorlabError):
+    """A session file is missing, of the wrong schema, read-only, or in the wrong state."""
+
+
+class AlgorithmError(MirrorlabError):
+    """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
+
+
+class DeviceError(MirrorlabError):
+    """Base class of instrument errors."""
+
+
+class DeviceTimeout(DeviceError):
+    """A device did not answer within its timeout."""
+
+
+class DeviceDisconnected(DeviceError):
+    """The connection to a device was lost or could not be opened."""
+
+
+class ProtocolError(DeviceError):
+    """A device sent bytes that do not follow its protocol (garbage, wrong reply shape)."""
+
+
+class DeviceReplyError(DeviceError):
+    """A device answered a command with ``ERR <code> <text>``."""
+
+    def __init__(self, command: str, code: str, text: str, device: str = "device") -> None:
+        self.command = command
+        self.code = code
+        self.text = text
+        super().__init__(f"{device} answered {command!r} with {code} {text}")

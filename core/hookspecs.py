@@ -1,0 +1,109 @@
+"""Hook specifications of the ``mirrorlab`` pluggy project.
+
+A plugin is any module or object with functions marked by :data:`hookimpl`. Built-in plugins are
+``mirrorlab.instruments`` and ``mirrorlab.plugins``; third-party plugins are found through the
+entry-point group ``mirrorlab``::
+
+    # pyproject.toml of a third-party package
+    [project.entry-points.mirrorlab]
+    acme = "acme_mirrorlab.plugin"
+
+    # acme_mirrorlab/plugin.py
+    from mirrorlab.core import hookimpl
+
+    @hookimpl
+    def mirrorlab_register_instruments():
+        return [AcmeTracker]
+
+Registration hooks return *classes*; the :class:`~mirrorlab.core.registry.Registry` checks each
+declaration (name, version, description, typed parameters) and records which plugin provided it,
+so that duplicates can be reported naming both providers.
+
+Lifecycle hooks are notifications: they are called in the session's thread, must return
+quickly and must not raise (an exception is logged against the plugin and the session goes on).
+Live data never flows through hooks: subscribe to streams with
+:meth:`mirrorlab.core.Session.subscribe` instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING, Any
+
+import pluggy
+
+if TYPE_CHECKING:
+    from .algorithms import Algorithm, ResultRef
+    from .devices import Instrument
+    from .session import Session
+    from .steps import Step
+
+PROJECT = "mirrorlab"
+
+hookspec = pluggy.HookspecMarker(PROJECT)
+#: Marker for hook implementations in plugins: ``@hookimpl def mirrorlab_register_instruments(): ...``
+hookimpl = pluggy.HookimplMarker(PROJECT)
+
+
+# -- registration ------------------------------------------------------------------------------
+@hookspec
+def mirrorlab_register_instruments() -> list[type[Instrument]]:
+    """Return the instrument classes this plugin provides.
+
+    Each class subclasses :class:`mirrorlab.core.devices.Instrument` and declares ``name``,
+    ``version``, ``description`` and ``parameters``; serial instruments also set ``simulator``.
+    """
+
+
+@hookspec
+def mirrorlab_register_algorithms() -> list[type[Algorithm]]:
+    """Return the algorithm classes this plugin provides.
+
+    Each class subclasses :class:`mirrorlab.core.algorithms.Algorithm`: a pure function of its
+    input arrays and typed parameters, runnable from the CLI, a recipe, the TUI or a script.
+    """
+
+
+@hookspec
+def mirrorlab_register_steps() -> list[type[Step]]:
+    """Return recipe step kinds (``[[steps]] action = "..."``) this plugin provides.
+
+    Each class subclasses :class:`mirrorlab.core.steps.Step`, whose ``parameters`` validate the
+    step's table in a recipe before anything runs.
+    """
+
+
+@hookspec
+def mirrorlab_add_cli_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Add sub-commands to the ``mirrorlab`` CLI.
+
+    Add a parser with ``subparsers.add_parser(name, help=...)`` and set its default ``func`` to a
+    callable taking the parsed ``argparse.Namespace`` and returning an exit code (0 ok, 1 runtime
+    failure, 2 usage or validation error).
+    """
+
+
+# -- session lifecycle ---------------------------------------------------------------------------
+@hookspec
+def mirrorlab_session_opened(session: Session) -> None:
+    """A session was created or opened (``session.writable`` tells which)."""
+
+
+@hookspec
+def mirrorlab_recording_started(session: Session) -> None:
+    """Recording started: every instrument is acquiring and the file is in SWMR mode."""
+
+
+@hookspec
+def mirrorlab_recording_stopped(session: Session, statistics: dict[str, Any]) -> None:
+    """Recording stopped; ``statistics`` maps ``"<instrument>/<stream>"`` to sample and drop counts."""
+
+
+@hookspec
+def mirrorlab_result_written(session: Session, result: ResultRef) -> None:
+    """An algorithm run finished and its result group was written (``result.status`` ok or failed)."""
+
+
+@hookspec
+def mirrorlab_session_closing(session: Session, status: str) -> None:
+    """The session is about to close with ``status`` (``closed`` or ``aborted``); the file is still writable."""

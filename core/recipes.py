@@ -1,0 +1,235 @@
+"""Recipes: TOML files that script a session.
+
+::
+
+    [session]
+    description = "scan three frames of film"
+    operator = "ana"
+
+    [instruments.cam]              # one table per instrument, named by the recipe
+    plugin = "film_scanner"        # a registered instrument plugin
+    simulate = true                # start its simulator, drive it through the real driver
+    [instruments.cam.settings]     # typed, validated against the plugin's parameters
+    lines = 344
+    [instruments.cam.simulator]    # only with simulate = true
+    clock = "FAST"
+
+    [[steps]]                      # executed in order
+    action = "acquire"             # a registered step kind: acquire | wait | run | ...
+    seconds = 10
+
+:func:`load_recipe` validates *everything* before anything starts and reports every problem with
+file, key path and reason. ``--set KEY=VALUE`` overrides (``instruments.cam.settings.lines=64``,
+``steps.0.seconds=2``) are applied first and stored with the recipe text in the session file.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from .errors import PluginError, Problem, ValidationError
+from .params import Parameter, ParameterSet
+from .registry import Registry, get_registry
+from .session import SIMULATOR_OPTIONS, Session
+
+SESSION_KEYS = ParameterSet(
+    Parameter("description", str, "", help="what the session is"),
+    Parameter("operator", str, "", help="who runs it"),
+)
+INSTRUMENT_KEYS = ParameterSet(
+    Parameter("plugin", str, help="registered instrument plugin"),
+    Parameter("simulate", bool, False, help="drive the plugin's simulator instead of a device"),
+    Parameter("port", str, "", help="device path or pyserial URL of the real device"),
+    Parameter("timeout", float, 2.0, unit="s", bounds=(0.01, 600.0), help="seconds per device call"),
+)
+
+
+@dataclass
+class InstrumentPlan:
+    label: str
+    plugin: str
+    simulate: bool
+    port: str
+    timeout: float
+    settings: dict[str, Any]
+    simulator: dict[str, Any]
+
+
+@dataclass
+class StepPlan:
+    index: int
+    action: str
+    cls: type
+    values: dict[str, Any]
+
+
+@dataclass
+class Recipe:
+    """A validated recipe, ready to run."""
+
+    path: Path
+    text: str
+    overrides: list[str]
+    data: dict[str, Any]
+    description: str
+    operator: str
+    instruments: list[InstrumentPlan] = field(default_factory=list)
+    steps: list[StepPlan] = field(default_factory=list)
+
+    def default_output(self, root: Path | None = None) -> Path:
+        """``sessions/out/<recipe>-<UTC timestamp>.h5`` next to the recipe's folder."""
+        stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+        base = root if root is not None else self.path.resolve().parent / "out"
+        return base / f"{self.path.stem}-{stamp}.h5"
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``"a.b.c=VALUE"`` → (``["a", "b", "c"]``, value parsed as TOML, else the raw string)."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip():
+        raise ValidationError([Problem("--set", f"{text!r} is not KEY=VALUE (e.g. steps.0.seconds=2)")])
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key.strip().split("."), value
+
+
+def _apply_override(data: dict[str, Any], keys: list[str], value: Any) -> None:
+    node: Any = data
+    for i, key in enumerate(keys[:-1]):
+        if isinstance(node, list):
+            if not key.isdigit() or int(key) >= len(node):
+                raise ValidationError([Problem("--set " + ".".join(keys),
+                                               f"{'.'.join(keys[:i])} has no item {key}")])
+            node = node[int(key)]
+        else:
+            node = node.setdefault(key, {})
+    last = keys[-1]
+    if isinstance(node, list):
+        if not last.isdigit() or int(last) >= len(node):
+            raise ValidationError([Problem("--set " + ".".join(keys), f"no item {last}")])
+        node[int(last)] = value
+    elif isinstance(node, dict):
+        node[last] = value
+    else:
+        raise ValidationError([Problem("--set " + ".".join(keys), "does not name a table key")])
+
+
+def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Registry | None = None) -> Recipe:
+    """Read, override and validate a recipe; raise :class:`ValidationError` listing every problem."""
+    path = Path(path)
+    file = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ValidationError([Problem("-", f"cannot read the recipe: {exc.strerror}", file)]) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValidationError([Problem("-", f"not valid TOML: {exc}", file)]) from None
+    for item in overrides:
+        keys, value = parse_override(item)
+        _apply_override(data, keys, value)
+    registry = registry or get_registry()
+    problems: list[Problem] = []
+
+    for key in data:
+        if key not in ("session", "instruments", "steps"):
+            problems.append(Problem(key, "unknown top-level table; expected session, instruments, steps", file))
+    session, more = SESSION_KEYS.problems(_table(data, "session", problems, file), "session", file)
+    problems += more
+
+    instruments: list[InstrumentPlan] = []
+    for label, table in _table(data, "instruments", problems, file).items():
+        where = f"instruments.{label}"
+        if not isinstance(table, Mapping):
+            problems.append(Problem(where, "must be a table", file))
+            continue
+        top = {k: v for k, v in table.items() if k not in ("settings", "simulator")}
+        values, more = INSTRUMENT_KEYS.problems(top, where, file)
+        problems += more
+        if "plugin" not in values:
+            continue
+        try:
+            cls = registry.instrument(values["plugin"])
+        except PluginError as exc:
+            problems.append(Problem(f"{where}.plugin", str(exc), file))
+            continue
+        settings, more = cls.parameters.problems(_table(table, "settings", problems, file, where),
+                                                 f"{where}.settings", file)
+        problems += more
+        sim_table = _table(table, "simulator", problems, file, where)
+        simulator, more = SIMULATOR_OPTIONS.problems(sim_table, f"{where}.simulator", file)
+        problems += more
+        if values.get("simulate") and getattr(cls, "simulator", None) is None and \
+                getattr(cls, "make_simulator", None) is None:
+            problems.append(Problem(f"{where}.simulate", f"{cls.name} has no simulator", file))
+        if not values.get("simulate") and not values.get("port") and cls.needs_port(settings):
+            problems.append(Problem(f"{where}.port", "required unless simulate = true "
+                                    "(device path or pyserial URL)", file))
+        instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
+                                          values["timeout"], settings, simulator))
+
+    steps: list[StepPlan] = []
+    raw_steps = data.get("steps", [])
+    if not isinstance(raw_steps, list):
+        problems.append(Problem("steps", "must be an array of tables ([[steps]])", file))
+        raw_steps = []
+    labels = {p.label: p for p in instruments}
+    for i, table in enumerate(raw_steps):
+        where = f"steps.{i}"
+        if not isinstance(table, Mapping) or "action" not in table:
+            problems.append(Problem(where, "each step needs action = \"...\"", file))
+            continue
+        try:
+            cls = registry.step(str(table["action"]))
+        except PluginError as exc:
+            problems.append(Problem(f"{where}.action", str(exc), file))
+            continue
+        rest = {k: v for k, v in table.items() if k != "action"}
+        values, more = cls.validate(rest, where, file, registry, labels)
+        problems += more
+        steps.append(StepPlan(i, cls.name, cls, values))
+    if not steps and not problems:
+        problems.append(Problem("steps", "the recipe has no [[steps]]; nothing would happen", file))
+    if problems:
+        raise ValidationError(problems)
+    return Recipe(path, text, list(overrides), data, session["description"], session["operator"],
+                  instruments, steps)
+
+
+def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str, where: str = "") -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, Mapping):
+        problems.append(Problem(f"{where}.{key}" if where else key, "must be a table", file))
+        return {}
+    return dict(value)
+
+
+def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
+               on_session: Callable[[Session], None] | None = None) -> Path:
+    """Run a validated recipe into a new session file; return its path.
+
+    On failure the session is closed with status ``aborted`` (everything recorded is kept) and
+    the error propagates.
+    """
+    record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
+              "effective": json.loads(json.dumps(recipe.data, default=str))}
+    with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
+                        registry=registry) as session:
+        if on_session is not None:
+            on_session(session)
+        for plan in recipe.instruments:
+            session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
+                                   simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout)
+        for step in recipe.steps:
+            session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
+            step.cls().execute(session, step.values)
+    return out

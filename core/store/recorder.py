@@ -1,0 +1,110 @@
+"""The recorder: the one thread that writes samples into the session file while recording.
+
+Device threads publish blocks to the router's bounded queue and never touch h5py (h5py serialises
+every call behind one global lock, so one writer is also the fastest). The recorder drains the
+queue, appends each block to its stream's ``data`` and ``time`` datasets, appends pending events
+to ``/log`` and flushes at least every ``flush_interval`` seconds, so a reader in another process
+(SWMR) and a file left by a crash both hold everything older than that.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections import defaultdict
+
+import h5py
+import numpy as np
+
+from ..events import EventBus
+from ..streams import Block, StreamRouter
+from .schema import append, log_rows
+
+
+class Recorder:
+    """Drain ``router.recorder_queue`` into ``file`` (already in SWMR mode) from a thread.
+
+    Parameters
+    ----------
+    file
+        Open session file; every dataset written to must exist before SWMR started.
+    router
+        Source of the blocks.
+    events
+        Bus whose pending events go to ``/log``.
+    flush_interval
+        Seconds between flushes (≤ 1 s keeps the crash guarantee).
+    """
+
+    def __init__(self, file: h5py.File, router: StreamRouter, events: EventBus,
+                 flush_interval: float = 0.5) -> None:
+        self.file = file
+        self.router = router
+        self.events = events
+        self.flush_interval = flush_interval
+        self.error: BaseException | None = None
+        self.written: dict[tuple[str, str], int] = defaultdict(int)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="recorder", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Write everything still queued, flush, and end the thread."""
+        self._stop.set()
+        self._thread.join()
+        if self.error is not None:
+            raise self.error
+
+    def _loop(self) -> None:
+        last_flush = time.monotonic()
+        q = self.router.recorder_queue
+        try:
+            while True:
+                batch = self._take(q, timeout=min(0.05, self.flush_interval))
+                if batch:
+                    self._write(batch)
+                now = time.monotonic()
+                stopping = self._stop.is_set() and q.empty()
+                if now - last_flush >= self.flush_interval or stopping:
+                    self._write_log()
+                    self.file.flush()
+                    last_flush = now
+                if stopping:
+                    return
+        except BaseException as exc:  # surfaced by stop(); the file keeps what was flushed
+            self.error = exc
+
+    @staticmethod
+    def _take(q: queue.Queue[Block], timeout: float) -> list[Block]:
+        try:
+            batch = [q.get(timeout=timeout)]
+        except queue.Empty:
+            return []
+        while len(batch) < 4096:
+            try:
+                batch.append(q.get_nowait())
+            except queue.Empty:
+                break
+        return batch
+
+    def _write(self, batch: list[Block]) -> None:
+        # Group blocks per stream so each dataset is resized once per batch.
+        grouped: dict[tuple[str, str], list[Block]] = defaultdict(list)
+        for block in batch:
+            grouped[(block.instrument, block.stream)].append(block)
+        for (inst, stream), blocks in grouped.items():
+            g = self.file[f"instruments/{inst}/{stream}"]
+            data = g["data"]
+            values = np.concatenate([b.values.reshape(-1, *data.shape[1:]) for b in blocks])
+            times = np.concatenate([b.times for b in blocks])
+            append(data, values.astype(data.dtype, copy=False))
+            append(g["time"], times)
+            self.written[(inst, stream)] += len(times)
+
+    def _write_log(self) -> None:
+        events = self.events.take_pending()
+        if events:
+            append(self.file["log"], log_rows(events))

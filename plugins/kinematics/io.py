@@ -1,0 +1,290 @@
+"""Marker-trajectory file I/O: C3D (ezc3d), TRC, Qualisys TSV readers; C3D and CSV writers.
+
+All readers return :class:`MarkerData` with positions in **mm** (converted from the file's unit)
+and NaN for missing samples (C3D residual < 0, empty TRC cells, Qualisys all-zero triples).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import KinematicsIOError
+
+__all__ = ["MarkerData", "read_c3d", "read_trc", "read_qualisys_tsv", "write_c3d", "write_csv"]
+
+FloatArray = NDArray[np.float64]
+
+_UNIT_TO_MM = {"mm": 1.0, "millimeters": 1.0, "cm": 10.0, "m": 1000.0, "meters": 1000.0, "dm": 100.0}
+
+
+def _scale(unit: str, path: os.PathLike[str] | str) -> float:
+    u = unit.strip().lower()
+    if u not in _UNIT_TO_MM:
+        raise KinematicsIOError(f"{path}: unknown length unit {unit!r}; expected one of {sorted(_UNIT_TO_MM)}")
+    return _UNIT_TO_MM[u]
+
+
+@dataclass(frozen=True)
+class MarkerData:
+    """Marker trajectories.
+
+    Attributes
+    ----------
+    labels : list of str
+        Marker names, one per column of ``points``.
+    rate : float
+        Frame rate (Hz).
+    points : ndarray, shape (T, M, 3)
+        Positions in mm, NaN where missing.
+    first_frame : int
+        Index of the first frame in the source (0-based; C3D frame number minus 1).
+    """
+
+    labels: list[str]
+    rate: float
+    points: FloatArray
+    first_frame: int = 0
+
+    @property
+    def time(self) -> FloatArray:
+        """Frame times in s, ``(first_frame + k) / rate``."""
+        return (self.first_frame + np.arange(self.points.shape[0])) / self.rate
+
+    def marker(self, label: str) -> FloatArray:
+        """Trajectory (T, 3) of one marker by label.
+
+        Raises
+        ------
+        KinematicsIOError
+            If the label is unknown (the message lists close matches).
+        """
+        if label not in self.labels:
+            near = [x for x in self.labels if label.lower() in x.lower()]
+            raise KinematicsIOError(f"no marker {label!r}; similar labels: {near or self.labels[:10]}")
+        return self.points[:, self.labels.index(label)]
+
+
+def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
+    """Read the 3-D points of a C3D file with ezc3d.
+
+    Parameters
+    ----------
+    path : path-like
+        C3D file.
+
+    Returns
+    -------
+    MarkerData
+        Points in mm (``POINT:UNITS`` honoured), NaN where the residual is negative or the point
+        is NaN.
+
+    Raises
+    ------
+    KinematicsIOError
+        If the file cannot be read or has no point data.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "x.c3d")
+    >>> write_c3d(p, ["A", "B", "C"], 100.0, np.zeros((4, 3, 3)))
+    >>> d = read_c3d(p); d.labels, d.rate, d.points.shape
+    (['A', 'B', 'C'], 100.0, (4, 3, 3))
+    """
+    try:
+        import ezc3d
+    except ImportError as exc:  # pragma: no cover
+        raise KinematicsIOError("reading C3D needs the 'ezc3d' package; pip install ezc3d") from exc
+    p = Path(path)
+    if not p.is_file():
+        raise KinematicsIOError(f"{p}: no such C3D file")
+    try:
+        c = ezc3d.c3d(str(p))
+    except Exception as exc:  # ezc3d raises plain RuntimeError/IOError
+        raise KinematicsIOError(f"{p}: not a readable C3D file ({exc})") from exc
+    par = c["parameters"]["POINT"]
+    labels = [str(x).strip() for x in par["LABELS"]["value"]]
+    if "LABELS2" in par:
+        labels += [str(x).strip() for x in par["LABELS2"]["value"]]
+    rate = float(np.ravel(par["RATE"]["value"])[0])
+    units = par["UNITS"]["value"] if "UNITS" in par else []
+    unit = units[0] if len(units) else "mm"
+    data = np.asarray(c["data"]["points"], dtype=float)  # (4, M, T)
+    if data.ndim != 3 or data.shape[1] == 0:
+        raise KinematicsIOError(f"{p}: the C3D file holds no 3-D points")
+    pts = np.transpose(data[:3], (2, 1, 0)) * _scale(unit, p)
+    resid = c["data"]["meta_points"]["residuals"]
+    if np.size(resid):
+        missing = np.asarray(resid)[0].T < 0
+        pts[missing] = np.nan
+    first = int(c["header"]["points"]["first_frame"])
+    return MarkerData(labels[: pts.shape[1]], rate, pts, first)
+
+
+def _split(line: str, sep: str) -> list[str]:
+    return line.rstrip("\r\n").split(sep)
+
+
+def read_trc(path: os.PathLike[str] | str) -> MarkerData:
+    """Read a TRC file (tab- or comma-separated, PathFileType 4).
+
+    The header frame count is not trusted: all data rows present are read. Empty cells are NaN.
+
+    Returns
+    -------
+    MarkerData
+        Points converted to mm from the header ``Units``; ``first_frame`` from the first row's
+        ``Frame#`` (1-based in the file).
+
+    Raises
+    ------
+    KinematicsIOError
+        On a malformed header.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise KinematicsIOError(f"{p}: no such TRC file")
+    lines = p.read_text(errors="replace").splitlines()
+    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
+        raise KinematicsIOError(f"{p}: not a TRC file (first line must start with 'PathFileType')")
+    sep = "\t" if "\t" in lines[1] else ","
+    keys = [k.strip() for k in _split(lines[1], sep)]
+    vals = [v.strip() for v in _split(lines[2], sep)]
+    hdr = dict(zip(keys, vals))
+    try:
+        rate = float(hdr.get("DataRate") or hdr["CameraRate"])
+        n_markers = int(hdr["NumMarkers"])
+    except (KeyError, ValueError) as exc:
+        raise KinematicsIOError(f"{p}: TRC header lacks DataRate/NumMarkers ({exc})") from exc
+    scale = _scale(hdr.get("Units", "mm"), p)
+    names = [x.strip() for x in _split(lines[3], sep)[2:]]
+    labels = [x for x in names if x][:n_markers]
+    rows = []
+    frames = []
+    for ln in lines[5:]:
+        cells = _split(ln, sep)
+        if not cells or not cells[0].strip():
+            continue
+        try:
+            frames.append(int(float(cells[0])))
+        except ValueError:
+            continue
+        vals3 = cells[2 : 2 + 3 * n_markers]
+        vals3 += [""] * (3 * n_markers - len(vals3))
+        rows.append([float(v) if v.strip() else np.nan for v in vals3])
+    if not rows:
+        raise KinematicsIOError(f"{p}: TRC file has no data rows")
+    pts = np.asarray(rows, dtype=float).reshape(len(rows), n_markers, 3) * scale
+    return MarkerData(labels, rate, pts, frames[0] - 1)
+
+
+def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
+    """Read a Qualisys 3-D TSV export; unnamed trajectories are labelled ``unlabeled_<k>``.
+
+    A marker whose X, Y and Z are all exactly 0.000 is treated as not visible (NaN).
+
+    Returns
+    -------
+    MarkerData
+        Points in mm.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise KinematicsIOError(f"{p}: no such TSV file")
+    hdr: dict[str, list[str]] = {}
+    with p.open(errors="replace") as fh:
+        for n_hdr, ln in enumerate(fh):
+            cells = ln.rstrip("\r\n").split("\t")
+            if cells[0] == "Frame":
+                columns = cells
+                break
+            hdr[cells[0]] = cells[1:]
+        else:
+            raise KinematicsIOError(f"{p}: no 'Frame' column-header line; not a Qualisys 3-D TSV")
+    try:
+        rate = float(hdr["FREQUENCY"][0])
+        n_markers = int(hdr["NO_OF_MARKERS"][0])
+    except (KeyError, ValueError, IndexError) as exc:
+        raise KinematicsIOError(f"{p}: header lacks FREQUENCY / NO_OF_MARKERS") from exc
+    data = np.loadtxt(p, skiprows=n_hdr + 1, delimiter="\t", usecols=range(2, 2 + 3 * n_markers), ndmin=2)
+    frames = np.loadtxt(p, skiprows=n_hdr + 1, delimiter="\t", usecols=0, ndmin=1)
+    pts = data.reshape(data.shape[0], n_markers, 3)
+    pts[np.all(pts == 0.0, axis=-1)] = np.nan
+    names = [x.strip() for x in hdr.get("MARKER_NAMES", [])]
+    labels = [names[i] if i < len(names) and names[i] else f"unlabeled_{i - len([n for n in names if n]) + 1}"
+              for i in range(n_markers)]
+    return MarkerData(labels, rate, pts, int(frames[0]) - 1)
+
+
+def _check_points(labels: list[str], points: ArrayLike) -> FloatArray:
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] != len(labels):
+        raise KinematicsIOError(
+            f"points must have shape (T, {len(labels)}, 3) to match the labels, got {pts.shape}"
+        )
+    return pts
+
+
+def write_c3d(path: os.PathLike[str] | str, labels: list[str], rate: float, points: ArrayLike) -> None:
+    """Write marker trajectories (mm, NaN = missing) to a float C3D file via ezc3d.
+
+    Missing samples get residual -1 so that :func:`read_c3d` (and other readers) restore NaN.
+
+    Parameters
+    ----------
+    path : path-like
+    labels : list of str
+    rate : float
+        Frame rate (Hz).
+    points : array_like, shape (T, M, 3)
+        Positions (mm).
+    """
+    import ezc3d
+
+    pts = _check_points(list(labels), points)
+    T, M, _ = pts.shape
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rate)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = tuple(str(x) for x in labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    data = np.ones((4, M, T))
+    data[:3] = np.transpose(pts, (2, 1, 0))
+    c["data"]["points"] = data
+    resid = np.zeros((1, M, T))
+    resid[0][np.any(~np.isfinite(pts), axis=-1).T] = -1.0
+    c["data"]["meta_points"] = {"residuals": resid, "camera_masks": np.zeros((7, M, T), dtype=bool)}
+    c.write(str(path))
+
+
+def write_csv(
+    path: os.PathLike[str] | str,
+    labels: list[str],
+    rate: float,
+    points: ArrayLike,
+    first_frame: int = 0,
+) -> None:
+    """Write marker trajectories to CSV: ``frame,time_s,<label>_x_mm,<label>_y_mm,<label>_z_mm,...``.
+
+    Missing samples are written as empty cells; ``frame`` is 0-based.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "x.csv")
+    >>> write_csv(p, ["A"], 10.0, [[[1.0, 2.0, np.nan]]])
+    >>> open(p).read().splitlines()
+    ['frame,time_s,A_x_mm,A_y_mm,A_z_mm', '0,0,1,2,']
+    """
+    pts = _check_points(list(labels), points)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time_s"] + [f"{lab}_{ax}_mm" for lab in labels for ax in "xyz"])
+        for k, row in enumerate(pts.reshape(pts.shape[0], -1)):
+            fr = first_frame + k
+            w.writerow([fr, f"{fr / rate:.10g}"] + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row])

@@ -1,0 +1,83 @@
+"""RSSR model (3.39-3.44) fixtures and measured-vs-model derivatives."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mirrorlab.plugins.kinematics import (
+    THESIS_RSSR,
+    CannotAssemble,
+    derivatives,
+    rssr_angles_from_markers,
+    rssr_state,
+)
+from mirrorlab.plugins.kinematics.rssr import THESIS_THETA_DOT
+
+TABLE = [  # theta deg, S_C mm, phi deg, phi_dot, phi_ddot (kinematics.md §6.5)
+    (0, (-169.630, -120.373, -79.398), 0.0, 0.227955, -0.219261),
+    (90, (-170.933, -132.503, -85.571), -6.7571, -0.229503, -0.083185),
+    (180, (-185.616, -185.447, -155.126), -51.6796, -0.259901, 0.123865),
+    (270, (-185.606, -185.436, -155.081), -51.6560, 0.263496, 0.148933),
+]
+
+
+@pytest.mark.parametrize("row", TABLE)
+def test_fixture_table(row):
+    th, sc, phi, pd, pdd = row
+    s = rssr_state(np.radians(th))
+    assert np.allclose(s.S_C, sc, atol=1e-3)
+    assert np.degrees(s.phi) == pytest.approx(phi, abs=1e-4)
+    assert s.phi_dot == pytest.approx(pd, abs=1e-6)
+    assert s.phi_ddot == pytest.approx(pdd, abs=1e-6)
+
+
+def test_closure_and_finite_differences_over_a_turn():
+    th = np.linspace(0, 2 * np.pi, 4001)
+    s = rssr_state(th)
+    d = np.asarray(THESIS_RSSR.d)
+    assert np.abs(s.a + s.b - s.c - d).max() < 1e-12
+    assert np.abs(np.linalg.norm(s.b, axis=1) - 272).max() < 1e-12
+    f = np.asarray(THESIS_RSSR.f) / np.linalg.norm(THESIS_RSSR.f)
+    assert np.abs(s.c @ f).max() < 1e-11
+    t = th / THESIS_THETA_DOT
+    phi = np.unwrap(s.phi)
+    assert np.abs(np.gradient(phi, t) - s.phi_dot)[2:-2].max() < 1e-5
+    assert np.abs(np.gradient(s.phi_dot, t) - s.phi_ddot)[2:-2].max() < 1e-5
+    # branch -: other assembly
+    sm = rssr_state(0.0, branch=-1)
+    assert np.allclose(sm.c / 116, [0.105915, 0.858507, 0.501744], atol=1e-6)
+
+
+def test_non_uniform_input_term():
+    th = np.linspace(0, 2 * np.pi, 20001)
+    tdd = 0.3
+    t = np.sqrt(2 * th / tdd)  # theta = tdd t^2 / 2
+    s = rssr_state(th, theta_dot=tdd * t, theta_ddot=tdd)
+    assert np.abs(np.gradient(s.phi_dot, t) - s.phi_ddot)[100:-5].max() < 1e-4
+
+
+def test_cannot_assemble():
+    with pytest.raises(CannotAssemble, match="theta"):
+        rssr_state(0.0, params=dataclasses.replace(THESIS_RSSR, b=10.0))
+
+
+def _measured(fps):
+    t = np.arange(0.0, 2 * 2 * np.pi / THESIS_THETA_DOT, 1.0 / fps)
+    s = rssr_state(THESIS_THETA_DOT * t)
+    theta, phi = rssr_angles_from_markers(s.S_A, s.S_C)
+    return t, s, theta, phi
+
+
+def test_modern_spline_matches_model_at_100fps():
+    t, s, theta, phi = _measured(100.0)
+    assert np.allclose(theta, THESIS_THETA_DOT * t, atol=1e-12)
+    assert np.allclose(phi, np.unwrap(s.phi), atol=1e-12)
+    _, v, a = derivatives(t, phi, method="smoothing_spline")
+    n = t.size
+    sl = slice(n // 10, n - n // 10)
+    ev = np.abs(v - s.phi_dot)[sl].max() / np.abs(s.phi_dot).max()
+    ea = np.abs(a - s.phi_ddot)[sl].max() / np.abs(s.phi_ddot).max()
+    assert ev < 1e-4 and ea < 1e-3, (ev, ea)

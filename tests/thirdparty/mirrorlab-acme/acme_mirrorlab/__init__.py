@@ -1,0 +1,7 @@
+"""ACME thermometer: a complete, minimal third-party mirrorlab plugin (see docs/writing-plugins.md)."""
+
+from .algorithm import DriftRate
+from .driver import AcmeThermometer
+from .model import AcmeThermometerModel
+
+__all__ = ["AcmeThermometer", "AcmeThermometerModel", "DriftRate"]

@@ -1,0 +1,16 @@
+"""The entry point module: what this package registers with mirrorlab."""
+
+from mirrorlab.core import hookimpl
+
+from .algorithm import DriftRate
+from .driver import AcmeThermometer
+
+
+@hookimpl
+def mirrorlab_register_instruments():
+    return [AcmeThermometer]
+
+
+@hookimpl
+def mirrorlab_register_algorithms():
+    return [DriftRate]
