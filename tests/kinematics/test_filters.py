@@ -84,7 +84,8 @@ def test_filters_preserve_constants_and_ramps(c, m, n):
     tau, h = thesis_filter(t, ramp)
     assert np.allclose(h, c + m * tau, rtol=1e-12, atol=1e-8)
     assert np.allclose(butterworth(t, const, cutoff=6.0), c, rtol=1e-9, atol=1e-7)
-    assert np.allclose(smoothing_spline(t, ramp), ramp, rtol=1e-8, atol=1e-6 * (1 + abs(m)))
+    # GCV on exact data is ill-conditioned: round-off of ~1e-8 relative (measured 1.4e-8 at c = 4520)
+    assert np.allclose(smoothing_spline(t, ramp), ramp, rtol=1e-7, atol=1e-6 * (1 + abs(m)))
     # zero-phase Butterworth with odd padding keeps a ramp only approximately (start-up
     # transients of the sosfiltfilt initial conditions): < 2 % of the rise at the ends and
     # < 0.2 % in the middle third (measured 1.4 % / 0.12 % at n = 20, 0.2 % / 5e-8 at n = 120)
