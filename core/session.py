@@ -40,7 +40,7 @@ import numpy as np
 from .algorithms import Algorithm, ResultRef, RunContext, execute
 from .clock import SessionClock, utc_now_iso
 from .devices import Instrument, SerialInstrument, SimulatorServer
-from .errors import MirrorlabError, Problem, SessionError, ValidationError
+from .errors import Problem, SessionError, ValidationError
 from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
 from .registry import Registry, get_registry
@@ -109,6 +109,7 @@ class Session:
         self._simulators: dict[str, SimulatorServer] = {}
         self._recorder: Recorder | None = None
         self._closed = False
+        self._created = False
         for message in registry.notify("mirrorlab_session_opened", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
 
@@ -151,7 +152,9 @@ class Session:
         schema.create_log(f)
         cls._write_config(f, recipe or {}, registry)
         f.flush()
-        return cls(path, f, True, registry)
+        session = cls(path, f, True, registry)
+        session._created = True
+        return session
 
     @classmethod
     def open(cls, path: str | Path, writable: bool = False, registry: Registry | None = None) -> "Session":
@@ -202,7 +205,9 @@ class Session:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
-        self.close("aborted" if exc_type is not None and self.writable else "closed")
+        # An exception while *recording* a new session aborts it; analysis of an existing
+        # session keeps that session's status whatever happens.
+        self.close("aborted" if exc_type is not None and self._created else None)
 
     @property
     def status(self) -> str:
@@ -552,18 +557,24 @@ class Session:
         return schema.read_log(self.file)
 
     # -- closing ---------------------------------------------------------------------------------
-    def close(self, status: str = "closed") -> None:
-        """Stop recording if needed, close instruments and simulators, set ``status``, close the file."""
+    def close(self, status: str | None = None) -> None:
+        """Stop recording if needed, close instruments and simulators, set ``status``, close the file.
+
+        ``status`` defaults to ``closed`` for a session created here and to its stored status for
+        an opened one (analysis never turns an aborted recording into a closed one).
+        """
         if self._closed:
             return
-        if status not in ("closed", "aborted"):
+        if status is None:
+            status = "closed" if self._created else self.status
+        if self.writable and status not in ("closed", "aborted"):
             raise ValueError("status must be 'closed' or 'aborted'")
         errors: list[BaseException] = []
         try:
             if self._recorder is not None:
                 try:
                     self.stop_recording()
-                except MirrorlabError as exc:
+                except Exception as exc:  # keep closing: instruments, simulators, status
                     errors.append(exc)
                     status = "aborted"
             for inst in self.instruments.values():

@@ -45,6 +45,9 @@ class Recorder:
         self.flush_interval = flush_interval
         self.error: BaseException | None = None
         self.written: dict[tuple[str, str], int] = defaultdict(int)
+        # Per stream: (data, time, length). Looking datasets up and asking h5py for shapes costs
+        # more than writing small blocks, so both are cached for the recording's lifetime.
+        self._handles: dict[tuple[str, str], list] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="recorder", daemon=True)
 
@@ -95,14 +98,21 @@ class Recorder:
         grouped: dict[tuple[str, str], list[Block]] = defaultdict(list)
         for block in batch:
             grouped[(block.instrument, block.stream)].append(block)
-        for (inst, stream), blocks in grouped.items():
-            g = self.file[f"instruments/{inst}/{stream}"]
-            data = g["data"]
-            values = np.concatenate([b.values.reshape(-1, *data.shape[1:]) for b in blocks])
+        for key, blocks in grouped.items():
+            handle = self._handles.get(key)
+            if handle is None:
+                g = self.file[f"instruments/{key[0]}/{key[1]}"]
+                handle = self._handles[key] = [g["data"], g["time"], g["time"].shape[0], g["data"].shape[1:]]
+            data, time_ds, n, shape = handle
+            values = np.concatenate([b.values.reshape(-1, *shape) for b in blocks]).astype(data.dtype, copy=False)
             times = np.concatenate([b.times for b in blocks])
-            append(data, values.astype(data.dtype, copy=False))
-            append(g["time"], times)
-            self.written[(inst, stream)] += len(times)
+            k = len(times)
+            data.resize(n + k, axis=0)
+            data[n:n + k] = values
+            time_ds.resize(n + k, axis=0)
+            time_ds[n:n + k] = times
+            handle[2] = n + k
+            self.written[key] += k
 
     def _write_log(self) -> None:
         events = self.events.take_pending()

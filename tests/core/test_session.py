@@ -133,3 +133,16 @@ def test_recording_survives_a_device_disconnect(tmp_path: Path, registry) -> Non
         assert s.file["instruments/thermo"].attrs["reconnects"] >= 1
     assert "connection_lost" in kinds and "reconnected" in kinds
     assert times.max() > 1.2  # samples after the reconnect
+
+
+def test_analysis_keeps_an_aborted_status(tmp_path: Path, registry) -> None:
+    path = tmp_path / "ab.h5"
+    with pytest.raises(RuntimeError):
+        with Session.create(path, registry=registry) as s:
+            s.add_instrument("thermo", "acme_thermometer", simulate=True, settings={"rate": 100})
+            s.record(0.5)
+            raise RuntimeError("stopped by the operator")
+    with Session.open(path, writable=True, registry=registry) as s:
+        assert s.run("acme_drift_rate", {"time": TIME, "values": VALUES}).status == "ok"
+    with Session.open(path) as s:
+        assert s.status == "aborted" and len(s.results()) == 1
