@@ -196,7 +196,7 @@ def test_calibrate_pinhole_synthetic_and_errors():
 @pytest.fixture(scope="module")
 def chessboard():
     if not CHESS.is_dir():
-        pytest.skip(f"real data folder {CHESS} is absent (expected ../shared/data next to the repo)")
+        pytest.fail(f"real data folder {CHESS} is absent: clone the repo next to shared/ (../shared/data)")
     files = sorted(CHESS.glob("*.jpg"))
     det = find_chessboard_corners(files, (10, 7), square_size=160.0)
     return det

@@ -297,10 +297,8 @@ def test_noise_midpoint_and_optimal_vs_opencv() -> None:
 
 def test_optimal_with_distorting_camera_model() -> None:
     """Any camera with project/rays works, e.g. the package's PinholeCamera with lens distortion."""
-    try:
-        from mirrorlab.plugins.photogrammetry.cameras import PinholeCamera
-    except ImportError:  # pragma: no cover - cameras.py is developed in parallel
-        pytest.skip("PinholeCamera not available")
+    from mirrorlab.plugins.photogrammetry.cameras import PinholeCamera
+
     ref, pts, _, _ = _noisy_scene(300, 0.0, 9)
     cam = PinholeCamera(ref.K, np.array([-0.12, 0.05, 0.0, 0.0, 0.0]), ref.R, ref.t)
     xy1, xy2 = cam.project(pts), cam.project(reflect(pts, G, N_TRUE))
