@@ -16,8 +16,8 @@ Run: ``python benchmarks/bench_store.py [--seconds 30] [--repeats 3]``
   (10-sample blocks) and a 512×344 uint8 image stream (one frame per block).
 
 (b) **Sustained recording through a real Session.** A benchmark-local, non-serial
-:class:`~mirrorlab.core.devices.Instrument` (``BenchSource``, registered through a small
-:class:`~mirrorlab.core.registry.Registry` subclass) emits 4 scalar streams at 1 kHz (10-sample
+:class:`~mirrorlab.core.devices.Instrument` (``BenchSource``, registered with
+:meth:`~mirrorlab.core.registry.Registry.add_plugin`) emits 4 scalar streams at 1 kHz (10-sample
 blocks every 10 ms) and one 512×344 uint8 image stream at 100 frames/s for ``--seconds``.
 Printed: samples written per stream, drops (must be 0), achieved rates, recorder-queue depth and
 CPU used (whole process, and the recorder and acquisition threads on Linux).
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import queue
 import resource
 import statistics
 import tempfile
@@ -41,7 +40,6 @@ from typing import Any
 
 import h5py
 import numpy as np
-
 from mirrorlab.core import Parameter, ParameterSet, Session, StreamSpec, hookimpl
 from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.devices import Identity, Instrument, Status
@@ -61,28 +59,11 @@ CAPS = (1, 64, 4096)  # (a): blocks per recorder batch: live trickle, a backlog,
 # (a) append overhead: mirrorlab's recorder path vs raw h5py
 # ---------------------------------------------------------------------------------------------
 class _BatchLog(Recorder):
-    """The real Recorder, with its batch cap (4096 blocks) set to ``cap`` and each batch's size noted.
+    """The real Recorder, noting each batch's size (its ``batch_blocks`` cap is set per case)."""
 
-    Only the taking is changed; grouping, concatenation, ``schema.append``, flushing and ``/log``
-    writing are the recorder's own code.
-    """
-
-    def __init__(self, *args: Any, cap: int = 4096, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.cap = cap
         self.batches: list[int] = []
-
-    def _take(self, q: queue.Queue, timeout: float) -> list:  # type: ignore[override]
-        try:
-            batch = [q.get(timeout=timeout)]
-        except queue.Empty:
-            return []
-        while len(batch) < self.cap:
-            try:
-                batch.append(q.get_nowait())
-            except queue.Empty:
-                break
-        return batch
 
     def _write(self, batch: list) -> None:
         self.batches.append(sum(len(b.times) for b in batch))
@@ -103,7 +84,7 @@ def _mirrorlab_append(path: Path, spec: StreamSpec, blocks: list[tuple[np.ndarra
     for times, values in blocks:
         router.publish("bench", spec.name, times, values)
     publish_us = 1e6 * (time.perf_counter() - t) / len(blocks)
-    recorder = _BatchLog(f, router, EventBus(SessionClock()), flush_interval=FLUSH_INTERVAL, cap=cap)
+    recorder = _BatchLog(f, router, EventBus(SessionClock()), flush_interval=FLUSH_INTERVAL, batch_blocks=cap)
     wall, cpu = time.perf_counter(), time.process_time()
     recorder.start()
     recorder.stop()  # writes everything queued, flushes, joins
@@ -162,7 +143,7 @@ def bench_append(workdir: Path, repeats: int) -> list[dict[str, Any]]:
         all_v = np.concatenate([np.asarray(v).reshape(-1, *spec.shape) for _, v in blocks])
         for cap in CAPS:
             ml_wall, ml_cpu, raw_wall, raw_cpu, pub = [], [], [], [], []
-            for r in range(repeats):  # interleaved, so drift of the machine hits both alike
+            for _ in range(repeats):  # interleaved, so drift of the machine hits both alike
                 p = workdir / f"ml-{spec.name}.h5"
                 w, c, us, batches = _mirrorlab_append(p, spec, blocks, cap)
                 with h5py.File(p, "r") as f:
@@ -265,19 +246,11 @@ class _BenchPlugin:
         return [BenchSource]
 
 
-class BenchRegistry(Registry):
-    """The normal registry (built-ins only) plus this file's plugin, collected through the hooks.
-
-    Registry has no public "add a plugin" method, so the extra plugin is loaded just before the
-    registration hooks are collected.
-    """
-
-    def __init__(self) -> None:
-        super().__init__(entry_points=False)
-
-    def _collect(self) -> None:
-        self._load("bench_store", "benchmarks/bench_store.py", _BenchPlugin)
-        super()._collect()
+def bench_registry() -> Registry:
+    """The built-ins plus this file's instrument (no entry points: only what is benchmarked)."""
+    registry = Registry(entry_points=False)
+    registry.add_plugin(_BenchPlugin(), "bench_store", "benchmarks/bench_store.py")
+    return registry
 
 
 def _thread_cpu() -> dict[str, float]:
@@ -296,7 +269,7 @@ def _thread_cpu() -> dict[str, float]:
 def bench_session(workdir: Path, seconds: float, settings: Mapping[str, Any]) -> dict[str, Any]:
     path = workdir / "session.h5"
     with Session.create(path, operator="bench", description="bench_store sustained recording",
-                        registry=BenchRegistry()) as s:
+                        registry=bench_registry()) as s:
         inst = s.add_instrument("src", "bench_source", settings=dict(settings))
         ru0, cpu0 = resource.getrusage(resource.RUSAGE_SELF), time.process_time()
         s.start_recording()

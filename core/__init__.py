@@ -7,8 +7,18 @@ Public API::
 
 from .algorithms import Algorithm, Port, ResultRef, RunContext
 from .errors import (
-    AlgorithmError, DeviceDisconnected, DeviceError, DeviceReplyError, DeviceTimeout, DuplicateNameError,
-    MirrorlabError, PluginError, Problem, ProtocolError, SessionError, ValidationError,
+    AlgorithmError,
+    DeviceDisconnected,
+    DeviceError,
+    DeviceReplyError,
+    DeviceTimeout,
+    DuplicateNameError,
+    MirrorlabError,
+    PluginError,
+    Problem,
+    ProtocolError,
+    SessionError,
+    ValidationError,
 )
 from .hookspecs import hookimpl
 from .params import Parameter, ParameterSet

@@ -8,12 +8,12 @@ wall-clock change (NTP step, daylight saving) never bends a recording.
 from __future__ import annotations
 
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 
 def utc_now_iso() -> str:
     """Current UTC time as ISO 8601 with a ``Z`` suffix (microsecond resolution)."""
-    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
 class SessionClock:

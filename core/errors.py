@@ -18,7 +18,7 @@ class ValidationError(MirrorlabError):
     ``problems`` holds one :class:`Problem` per defect so that all of them can be reported at once.
     """
 
-    def __init__(self, problems: list["Problem"]) -> None:
+    def __init__(self, problems: list[Problem]) -> None:
         self.problems = list(problems)
         super().__init__("\n".join(str(p) for p in self.problems))
 

@@ -271,7 +271,7 @@ class ParameterSet:
     def describe(self) -> list[dict[str, Any]]:
         return [p.describe() for p in self.parameters]
 
-    def merged(self, other: Iterable[Parameter]) -> "ParameterSet":
+    def merged(self, other: Iterable[Parameter]) -> ParameterSet:
         """A new set with ``other``'s parameters appended (used to add common options)."""
         return ParameterSet(*self.parameters, *other)
 

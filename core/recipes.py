@@ -29,7 +29,7 @@ import json
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -84,7 +84,7 @@ class Recipe:
 
     def default_output(self, root: Path | None = None) -> Path:
         """``sessions/out/<recipe>-<UTC timestamp>.h5`` next to the recipe's folder."""
-        stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+        stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
         base = root if root is not None else self.path.resolve().parent / "out"
         return base / f"{self.path.stem}-{stamp}.h5"
 

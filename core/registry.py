@@ -26,7 +26,9 @@ from . import hookspecs
 from .errors import DuplicateNameError, PluginError
 
 ENTRY_POINT_GROUP = "mirrorlab"
-BUILTIN_PLUGINS = ("mirrorlab.core.steps", "mirrorlab.instruments", "mirrorlab.plugins")
+BUILTIN_PLUGINS = ("mirrorlab.core.steps", "mirrorlab.instruments")
+#: Module whose ``builtin_plugins()`` lists further built-in plugins, each loaded on its own.
+BUILTIN_ADAPTERS = "mirrorlab.plugins"
 KINDS = ("instrument", "algorithm", "step")
 _REQUIRED = ("name", "version", "description", "parameters")
 
@@ -68,6 +70,8 @@ class Registry:
         self._items: dict[str, dict[str, list[Provided]]] = {k: {} for k in KINDS}
         for module in BUILTIN_PLUGINS:
             self._load(module, "builtin", lambda m=module: importlib.import_module(m))
+        for name, loader in importlib.import_module(BUILTIN_ADAPTERS).builtin_plugins():
+            self._load(name, "builtin", loader)
         if entry_points:
             for ep in md.entry_points(group=ENTRY_POINT_GROUP):
                 dist = ep.dist.name if ep.dist else ""
@@ -90,28 +94,47 @@ class Registry:
                 self.pm.unregister(name=name)
 
     def _collect(self) -> None:
+        for plugin_name, info in self.plugins.items():
+            if info.ok:
+                self._collect_plugin(plugin_name, info)
+
+    def _collect_plugin(self, plugin_name: str, info: PluginInfo) -> None:
+        """Call the registration hooks of one plugin; all its classes count, or none of them."""
         hooks = {"instrument": "mirrorlab_register_instruments",
                  "algorithm": "mirrorlab_register_algorithms",
                  "step": "mirrorlab_register_steps"}
-        for plugin_name, info in self.plugins.items():
-            if not info.ok:
+        plugin = self.pm.get_plugin(plugin_name)
+        found: list[tuple[str, type]] = []
+        for kind, hook_name in hooks.items():
+            impl = getattr(plugin, hook_name, None)
+            if impl is None:
                 continue
-            plugin = self.pm.get_plugin(plugin_name)
-            for kind, hook_name in hooks.items():
-                impl = getattr(plugin, hook_name, None)
-                if impl is None:
-                    continue
-                try:
-                    classes = list(impl() or [])
-                    for cls in classes:
-                        self._check_declaration(kind, cls)
-                except Exception as exc:
-                    info.error = f"{hook_name} failed: {type(exc).__name__}: {exc}"
-                    info.traceback = traceback.format_exc()
-                    break
+            try:
+                classes = list(impl() or [])
                 for cls in classes:
-                    self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, plugin_name))
-                    info.provides.setdefault(kind, []).append(cls.name)
+                    self._check_declaration(kind, cls)
+            except Exception as exc:
+                info.error = f"{hook_name} failed: {type(exc).__name__}: {exc}"
+                info.traceback = traceback.format_exc()
+                return
+            found += [(kind, cls) for cls in classes]
+        for kind, cls in found:
+            self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, plugin_name))
+            info.provides.setdefault(kind, []).append(cls.name)
+
+    def add_plugin(self, plugin: object, name: str, source: str = "added at run time") -> PluginInfo:
+        """Register one more plugin object (a module or an object with hook functions).
+
+        For scripts, notebooks and benchmarks that define plugins inline; installed packages use the
+        entry-point group instead. A failure is recorded like any broken plugin and returned.
+        """
+        if name in self.plugins:
+            raise PluginError(f"a plugin named {name!r} is already registered ({self.plugins[name].source})")
+        self._load(name, source, lambda: plugin)
+        info = self.plugins[name]
+        if info.ok:
+            self._collect_plugin(name, info)
+        return info
 
     @staticmethod
     def _check_declaration(kind: str, cls: Any) -> None:

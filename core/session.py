@@ -45,8 +45,8 @@ from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
 from .registry import Registry, get_registry
 from .store import files, schema
-from .store.schema import LIBVER
 from .store.recorder import Recorder
+from .store.schema import LIBVER
 from .streams import Emitter, StreamRouter, Subscription
 
 SIMULATOR_OPTIONS = ParameterSet(
@@ -117,7 +117,7 @@ class Session:
     @classmethod
     def create(cls, path: str | Path, *, operator: str = "", description: str = "",
                recipe: Mapping[str, Any] | None = None, registry: Registry | None = None,
-               overwrite: bool = False) -> "Session":
+               overwrite: bool = False) -> Session:
         """Create a new session file (status ``open``).
 
         Parameters
@@ -157,7 +157,7 @@ class Session:
         return session
 
     @classmethod
-    def open(cls, path: str | Path, writable: bool = False, registry: Registry | None = None) -> "Session":
+    def open(cls, path: str | Path, writable: bool = False, registry: Registry | None = None) -> Session:
         """Open an existing session, read-only unless ``writable``.
 
         A file left open by a crash opens read-only (SWMR) with ``crashed = True``; to write to it,
@@ -201,7 +201,7 @@ class Session:
                               dtype=schema.STR)
 
     # -- basic properties ------------------------------------------------------------------------
-    def __enter__(self) -> "Session":
+    def __enter__(self) -> Session:
         return self
 
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
@@ -350,6 +350,7 @@ class Session:
         self._write_pending_log()
         self.file.flush()
         self.file.swmr_mode = True  # from here on no object or attribute may be created
+        files.write_lock(self.path)  # tells `session check/close` a live writer has the file
         self.router.recording = True
         self._recorder = Recorder(self.file, self.router, self.events)
         self._recorder.start()
@@ -374,6 +375,7 @@ class Session:
             # Reopen without SWMR so attributes, results and new groups can be written again.
             self.file.close()
             self.file = h5py.File(self.path, "a", libver=LIBVER)
+            files.remove_lock(self.path)
         stats = {}
         for (inst, stream), st in self.router.stats.items():
             stats[f"{inst}/{stream}"] = {"samples": recorder.written.get((inst, stream), 0),

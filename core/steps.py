@@ -37,12 +37,12 @@ class Step(ABC):
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         """Typed values of the step's table and every problem found (file, key path, reason)."""
         return cls.parameters.problems(table, where, file)
 
     @abstractmethod
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         """Run the step on an open, writable session."""
 
 
@@ -53,7 +53,7 @@ class Acquire(Step):
         Parameter("seconds", float, unit="s", bounds=(0.0, 7 * 24 * 3600.0), help="how long to record"),
     )
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         session.record(values["seconds"])
 
 
@@ -62,7 +62,7 @@ class Wait(Step):
     description = "pause between steps (e.g. to let a mechanism settle)"
     parameters = ParameterSet(Parameter("seconds", float, unit="s", bounds=(0.0, 3600.0), help="pause"))
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         end = time.monotonic() + values["seconds"]
         while (left := end - time.monotonic()) > 0:
             session.events.progress("wait", values["seconds"] - left, values["seconds"], "waiting")
@@ -76,7 +76,7 @@ class Run(Step):
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
         values, problems = cls.parameters.problems(scalar, where, file)
         if problems:
@@ -110,7 +110,7 @@ class Run(Step):
         values.update(inputs=dict(inputs), parameters=typed)
         return values, problems
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         session.run(values["algorithm"], values["inputs"], values["parameters"])
 
 

@@ -74,6 +74,43 @@ class Block:
     values: np.ndarray
 
 
+class BlockQueue:
+    """The bounded queue between device threads and the recorder.
+
+    ``put_nowait`` never blocks (a full queue raises :class:`queue.Full`); the recorder takes
+    whole batches with :meth:`take`. Built on :class:`collections.deque`, whose ``append`` and
+    ``popleft`` are atomic, so a block costs well under a microsecond to pass — a
+    :class:`queue.Queue` costs more per block than writing a small block to HDF5.
+    """
+
+    def __init__(self, maxsize: int) -> None:
+        self.maxsize = maxsize
+        self._items: deque[Block] = deque()
+        self._ready = threading.Event()
+
+    def put_nowait(self, block: Block) -> None:
+        # len() then append() may overshoot by the number of concurrent producers: still bounded.
+        if len(self._items) >= self.maxsize:
+            raise queue.Full
+        self._items.append(block)
+        self._ready.set()
+
+    def take(self, limit: int, timeout: float) -> list[Block]:
+        """Up to ``limit`` blocks, oldest first, waiting up to ``timeout`` s for the first."""
+        if not self._items:
+            self._ready.clear()
+            if not self._items and not self._ready.wait(timeout):
+                return []
+        items, popleft = self._items, self._items.popleft
+        return [popleft() for _ in range(min(limit, len(items)))]
+
+    def qsize(self) -> int:
+        return len(self._items)
+
+    def empty(self) -> bool:
+        return not self._items
+
+
 class Subscription:
     """A bounded live view of one stream, filled by the router and read by any thread or task.
 
@@ -120,6 +157,7 @@ class StreamStats:
     samples: int = 0
     blocks: int = 0
     dropped_samples: int = 0
+    overflows: int = 0
 
 
 class StreamRouter:
@@ -135,7 +173,7 @@ class StreamRouter:
     """
 
     def __init__(self, queue_blocks: int = 4096, on_overflow: Any = None) -> None:
-        self.recorder_queue: queue.Queue[Block] = queue.Queue(maxsize=queue_blocks)
+        self.recorder_queue = BlockQueue(queue_blocks)
         self.stats: dict[tuple[str, str], StreamStats] = {}
         self._subs: dict[tuple[str, str], list[Subscription]] = {}
         self._lock = threading.Lock()
@@ -169,7 +207,8 @@ class StreamRouter:
                 self.recorder_queue.put_nowait(block)
             except queue.Full:
                 stats.dropped_samples += n
-                if self._on_overflow is not None and (stats.dropped_samples == n or stats.blocks % 100 == 0):
+                stats.overflows += 1
+                if self._on_overflow is not None and stats.overflows % 100 == 1:
                     self._on_overflow(block, stats.dropped_samples)
                 else:
                     log.debug("recorder queue full: dropped %d samples of %s/%s", n, instrument, stream)

@@ -37,8 +37,8 @@ from .streams import Emitter, StreamRouter
 
 
 @contextmanager
-def simulated(instrument_class: type[Instrument], settings: dict[str, Any] | None = None,
-              transport: str = "pty", seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[Instrument, SimulatorServer]]:
+def simulated(instrument_class: type[Instrument], settings: dict[str, Any] | None = None, transport: str = "pty",
+              seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[Instrument, SimulatorServer]]:
     """Start ``instrument_class``'s simulator and yield ``(connected instrument, server)``.
 
     The simulator clock is FAST so modelled delays cost no wall time.

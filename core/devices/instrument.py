@@ -183,7 +183,7 @@ class Instrument(ABC):
             "identity": self.identity.as_dict() if self.identity else {},
         }
 
-    def __enter__(self) -> "Instrument":
+    def __enter__(self) -> Instrument:
         self.connect()
         self.identify()
         return self

@@ -232,11 +232,11 @@ class SimulatorServer:
     def url(self) -> str:
         return self.endpoint.url
 
-    def start(self) -> "SimulatorServer":
+    def start(self) -> SimulatorServer:
         self._thread.start()
         return self
 
-    def __enter__(self) -> "SimulatorServer":
+    def __enter__(self) -> SimulatorServer:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

@@ -10,13 +10,13 @@ garbled bytes, stalls and disconnects through a real byte stream.
 from __future__ import annotations
 
 import os
-from abc import ABC, abstractmethod
 import random
 import select
 import socket
 import threading
 import time
 import tty
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -206,7 +206,7 @@ class TcpEndpoint(Endpoint):
         while not stop.is_set():
             try:
                 conn, _ = self._server.accept()
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 continue
             except OSError:
                 return False

@@ -8,7 +8,9 @@ file and atomically replaces the original.
 
 from __future__ import annotations
 
+import json
 import os
+import socket
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +40,42 @@ def open_readonly(path: str | Path) -> tuple[h5py.File, bool]:
             raise SessionError(f"{path} is not a readable HDF5 session file: {exc}") from exc
 
 
+def lock_path(path: str | Path) -> Path:
+    """The marker file a recording keeps next to its session file: ``<file>.recording``."""
+    path = Path(path)
+    return path.with_name(path.name + ".recording")
+
+
+def write_lock(path: str | Path) -> None:
+    """Mark ``path`` as being recorded by this process (host and pid)."""
+    lock_path(path).write_text(json.dumps({"host": socket.gethostname(), "pid": os.getpid()}))
+
+
+def remove_lock(path: str | Path) -> None:
+    lock_path(path).unlink(missing_ok=True)
+
+
+def live_writer(path: str | Path) -> str | None:
+    """Who is recording ``path`` right now (``"pid N on HOST"``), or ``None`` if nobody is.
+
+    A marker left by a killed writer does not count. A writer on another host cannot be checked
+    and is assumed alive (the safe answer: never repair under a live writer).
+    """
+    try:
+        info = json.loads(lock_path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    pid, host = int(info.get("pid", -1)), str(info.get("host", ""))
+    if host == socket.gethostname():
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            pass  # exists, owned by someone else
+    return f"pid {pid} on {host}"
+
+
 @dataclass
 class CheckReport:
     """What :func:`check` found."""
@@ -46,6 +84,7 @@ class CheckReport:
     status: str = ""
     schema: int | None = None
     open_for_write: bool = False
+    writer: str | None = None
     problems: list[str] = field(default_factory=list)
     streams: dict[str, dict[str, Any]] = field(default_factory=dict)
 
@@ -55,14 +94,14 @@ class CheckReport:
 
     def as_dict(self) -> dict[str, Any]:
         return {"path": self.path, "status": self.status, "schema": self.schema,
-                "open_for_write": self.open_for_write, "complete": self.complete,
+                "open_for_write": self.open_for_write, "writer": self.writer, "complete": self.complete,
                 "problems": self.problems, "streams": self.streams}
 
 
 def check(path: str | Path) -> CheckReport:
     """Check a session file: schema, status, crash flags, stream consistency."""
     f, crashed = open_readonly(path)
-    report = CheckReport(str(path), open_for_write=crashed)
+    report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path))
     with f:
         missing = [a for a in ROOT_ATTRS if a not in f.attrs]
         if missing:
@@ -72,9 +111,12 @@ def check(path: str | Path) -> CheckReport:
             report.problems.append(f"schema {report.schema} is newer than this mirrorlab ({SCHEMA_VERSION}); upgrade")
         report.status = attr_str(f, "status")
         if report.status == "open":
-            why = "the writer was killed or is still recording" if crashed else "it was never closed"
-            report.problems.append(f"status is 'open': the session is incomplete ({why}); if no program "
-                                   "is recording it, run `mirrorlab session close FILE --aborted`")
+            if report.writer:
+                report.problems.append(f"status is 'open': it is being recorded right now by {report.writer}")
+            else:
+                why = "the recording was killed" if crashed else "it was never closed"
+                report.problems.append(f"status is 'open': the session is incomplete ({why}); "
+                                       "run `mirrorlab session close FILE --aborted` to mark it")
         for label, inst in f.get("instruments", {}).items():
             for name, g in inst.items():
                 if not isinstance(g, h5py.Group) or "data" not in g:
@@ -137,9 +179,13 @@ def _copy_trimmed(src: h5py.Group, dst: h5py.Group, name: str) -> None:
 
 def mark_status(path: str | Path, status: str) -> None:
     """Set the root ``status`` of a session that is not being recorded (repairing it if crashed)."""
+    writer = live_writer(path)
+    if writer:
+        raise SessionError(f"{path} is being recorded by {writer}; stop that recording first")
     f, crashed = open_readonly(path)
     f.close()
     if crashed:
         repair(path)
+    remove_lock(path)
     with h5py.File(path, "a", libver=LIBVER) as f:
         f.attrs["status"] = status

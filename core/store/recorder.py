@@ -9,7 +9,6 @@ to ``/log`` and flushes at least every ``flush_interval`` seconds, so a reader i
 
 from __future__ import annotations
 
-import queue
 import threading
 import time
 from collections import defaultdict
@@ -38,11 +37,12 @@ class Recorder:
     """
 
     def __init__(self, file: h5py.File, router: StreamRouter, events: EventBus,
-                 flush_interval: float = 0.5) -> None:
+                 flush_interval: float = 0.5, batch_blocks: int = 4096) -> None:
         self.file = file
         self.router = router
         self.events = events
         self.flush_interval = flush_interval
+        self.batch_blocks = batch_blocks
         self.error: BaseException | None = None
         self.written: dict[tuple[str, str], int] = defaultdict(int)
         # Per stream: (data, time, length). Looking datasets up and asking h5py for shapes costs
@@ -66,7 +66,7 @@ class Recorder:
         q = self.router.recorder_queue
         try:
             while True:
-                batch = self._take(q, timeout=min(0.05, self.flush_interval))
+                batch = q.take(self.batch_blocks, timeout=min(0.05, self.flush_interval))
                 if batch:
                     self._write(batch)
                 now = time.monotonic()
@@ -80,19 +80,6 @@ class Recorder:
         except BaseException as exc:  # surfaced by stop(); the file keeps what was flushed
             self.error = exc
 
-    @staticmethod
-    def _take(q: queue.Queue[Block], timeout: float) -> list[Block]:
-        try:
-            batch = [q.get(timeout=timeout)]
-        except queue.Empty:
-            return []
-        while len(batch) < 4096:
-            try:
-                batch.append(q.get_nowait())
-            except queue.Empty:
-                break
-        return batch
-
     def _write(self, batch: list[Block]) -> None:
         # Group blocks per stream so each dataset is resized once per batch.
         grouped: dict[tuple[str, str], list[Block]] = defaultdict(list)
@@ -104,8 +91,12 @@ class Recorder:
                 g = self.file[f"instruments/{key[0]}/{key[1]}"]
                 handle = self._handles[key] = [g["data"], g["time"], g["time"].shape[0], g["data"].shape[1:]]
             data, time_ds, n, shape = handle
-            values = np.concatenate([b.values.reshape(-1, *shape) for b in blocks]).astype(data.dtype, copy=False)
-            times = np.concatenate([b.times for b in blocks])
+            if len(blocks) == 1:  # the live case: write the block itself, no copy
+                values, times = blocks[0].values.reshape(-1, *shape), blocks[0].times
+            else:
+                values = np.concatenate([b.values.reshape(-1, *shape) for b in blocks])
+                times = np.concatenate([b.times for b in blocks])
+            values = values.astype(data.dtype, copy=False)
             k = len(times)
             data.resize(n + k, axis=0)
             data[n:n + k] = values

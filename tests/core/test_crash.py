@@ -13,8 +13,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
 from mirrorlab.core import Session, SessionError
+
 from tests.support import run_cli
 
 RATE = 200.0
@@ -60,13 +60,13 @@ def test_sigkill_keeps_everything_older_than_one_second(tmp_path: Path, acme_sit
 
     check = run_cli("session", "check", str(path))
     assert check.returncode == 1
-    assert "INCOMPLETE" in check.stdout and "status is 'open'" in check.stdout
+    assert "INCOMPLETE" in check.stdout and "the recording was killed" in check.stdout
     with pytest.raises(SessionError, match="session close .* --aborted"):
         Session.open(path, writable=True)
 
     close = run_cli("session", "close", str(path), "--aborted")
     assert close.returncode == 0, close.stderr
-    assert "repaired" in close.stdout
+    assert "repaired" in close.stdout and not path.with_name("crash.h5.recording").exists()
     with h5py.File(path, "r") as f:  # a normal open works again
         assert f.attrs["status"] == "aborted"
         assert f["instruments/thermo/temperature/time"].shape[0] == len(times)
@@ -92,7 +92,12 @@ def test_another_process_reads_the_growing_file(tmp_path: Path, acme_site: Path)
         out = subprocess.run([sys.executable, "-c", reader, str(path)], capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stderr
         counts = [int(c) for c in out.stdout.split()]
-        assert counts[0] > 0 and all(b > a for a, b in zip(counts, counts[1:])), counts
+        assert counts[0] > 0 and all(b > a for a, b in zip(counts, counts[1:], strict=False)), counts
+        # a live writer is recognised: no repair underneath it
+        check = run_cli("session", "check", str(path))
+        assert check.returncode == 1 and f"being recorded right now by pid {proc.pid}" in check.stdout
+        close = run_cli("session", "close", str(path), "--aborted")
+        assert close.returncode == 1 and "stop that recording first" in close.stderr
     finally:
         proc.kill()
         proc.wait(timeout=10)

@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
 from mirrorlab.core import Parameter, ParameterSet, ValidationError
 from mirrorlab.core.params import convert_unit
 

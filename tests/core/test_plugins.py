@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 import pytest
-
 from mirrorlab.core import DuplicateNameError, Session
 from mirrorlab.core.registry import get_registry
 
@@ -72,3 +71,37 @@ def test_plugins_show_prints_typed_parameters(acme_site: Path) -> None:
     assert "rate" in proc.stdout and "Hz" in proc.stdout and "1.0..1000.0" in proc.stdout
     missing = run_cli("plugins", "show", "nope")
     assert missing.returncode == 1 and "nothing named 'nope'" in missing.stderr
+
+
+def test_add_plugin_at_run_time_all_or_nothing() -> None:
+    from mirrorlab.core import Algorithm, PluginError, hookimpl
+    from mirrorlab.core.registry import Registry
+
+    class Ok(Algorithm):
+        name, version, description = "inline_ok", "1.0", "inline algorithm"
+
+        def run(self, inputs, params, context):
+            return {}
+
+    class HalfBroken:
+        @hookimpl
+        def mirrorlab_register_algorithms(self):
+            return [Ok]
+
+        @hookimpl
+        def mirrorlab_register_steps(self):
+            raise RuntimeError("step table corrupt")
+
+    reg = Registry(entry_points=False)
+    info = reg.add_plugin(HalfBroken(), "half")
+    assert not info.ok and "step table corrupt" in info.error
+    with pytest.raises(PluginError, match="no algorithm named 'inline_ok'"):
+        reg.algorithm("inline_ok")  # nothing of a broken plugin is usable
+    class Fine:
+        @hookimpl
+        def mirrorlab_register_algorithms(self):
+            return [Ok]
+
+    assert reg.add_plugin(Fine(), "fine").ok and reg.algorithm("inline_ok") is Ok
+    with pytest.raises(PluginError, match="already registered"):
+        reg.add_plugin(Fine(), "fine")

@@ -8,7 +8,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
 from mirrorlab.core import PluginError, Session, SessionError, ValidationError
 
 TIME = "/instruments/thermo/temperature/time"

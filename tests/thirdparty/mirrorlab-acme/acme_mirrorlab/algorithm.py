@@ -6,7 +6,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-
 from mirrorlab.core import Algorithm, AlgorithmError, Parameter, ParameterSet, Port, RunContext
 
 

@@ -7,7 +7,6 @@ import threading
 from typing import Any
 
 import numpy as np
-
 from mirrorlab.core import Parameter, ParameterSet, ProtocolError, StreamSpec
 from mirrorlab.core.devices import SerialInstrument, Status
 

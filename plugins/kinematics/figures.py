@@ -1,0 +1,160 @@
+"""PNG figures of kinematics results (matplotlib, Agg canvas; no global pyplot state).
+
+Each function draws one figure and writes it to ``path`` (parent folders are created) and returns
+the path. Angles are drawn in degrees, positions in mm, time in s.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from numpy.typing import ArrayLike
+
+__all__ = ["plot_derivatives", "plot_angles", "plot_rigid"]
+
+#: At most this many markers are drawn individually; the rest are summarised by the legend text.
+MAX_TRACES = 8
+
+
+def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    FigureCanvasAgg(fig)
+    fig.savefig(p, dpi=100)
+    return p
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(x, axis=-1)
+
+
+def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike,
+                     velocity: ArrayLike, acceleration: ArrayLike, title: str = "") -> Path:
+    """Positions (x, y, z), speed |v| and |a| of markers over time.
+
+    Parameters
+    ----------
+    path : path-like
+        PNG file to write.
+    t : array_like, shape (T,)
+        Times in s.
+    labels : sequence of str
+        Marker names (M).
+    smoothed, velocity, acceleration : array_like, shape (T, M, 3)
+        mm, mm/s, mm/s².
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> t = np.linspace(0, 1, 20); x = np.zeros((20, 1, 3)); x[:, 0, 0] = t
+    >>> p = plot_derivatives(os.path.join(tempfile.mkdtemp(), "d.png"), t, ["A"], x, x, x)
+    >>> p.stat().st_size > 0
+    True
+    """
+    tt = np.asarray(t, float)
+    xs, v, a = (np.asarray(q, float) for q in (smoothed, velocity, acceleration))
+    fig = Figure(figsize=(9, 9), layout="constrained")
+    ax = fig.subplots(3, 1, sharex=True)
+    shown = list(range(min(len(labels), MAX_TRACES)))
+    for m in shown:
+        for c, ls in zip(range(3), ("-", "--", ":")):
+            ax[0].plot(tt, xs[:, m, c], ls, lw=0.8, color=f"C{m % 10}", label=f"{labels[m]} {'xyz'[c]}" if c == 0 else None)
+        ax[1].plot(tt, _norm(v[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
+        ax[2].plot(tt, _norm(a[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
+    ax[0].set_ylabel("position (mm)\nx solid, y dashed, z dotted")
+    ax[1].set_ylabel("speed |v| (m/s)")
+    ax[2].set_ylabel("|a| (m/s²)")
+    ax[2].set_xlabel("time (s)")
+    more = len(labels) - len(shown)
+    ax[1].legend(fontsize=7, ncol=2, title=f"+{more} more not drawn" if more > 0 else None)
+    for axis in ax:
+        axis.grid(alpha=0.3)
+    fig.suptitle(title or "marker kinematics")
+    return _save(fig, path)
+
+
+def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str, ArrayLike],
+                title: str = "", reference: Mapping[str, tuple[ArrayLike, ArrayLike]] | None = None) -> Path:
+    """Joint angles (rad in, degrees drawn) over time, one panel per angle.
+
+    ``reference`` maps an angle name to ``(t_ref, degrees)`` drawn on the same panel (e.g. OpenSim).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> t = np.linspace(0, 1, 10)
+    >>> plot_angles(os.path.join(tempfile.mkdtemp(), "a.png"), t, {"theta3": t}).stat().st_size > 0
+    True
+    """
+    tt = np.asarray(t, float)
+    names = list(angles)
+    cols = 2 if len(names) > 4 else 1
+    rows = int(np.ceil(len(names) / cols)) or 1
+    fig = Figure(figsize=(5.0 * cols + 2, 1.9 * rows + 1), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False)).ravel()
+    for axis, name in zip(axes, names):
+        y = np.degrees(np.asarray(angles[name], float))
+        if y.ndim == 1:
+            axis.plot(tt, y, lw=0.9, label=name)
+        else:
+            for c in range(y.shape[1]):
+                axis.plot(tt, y[:, c], lw=0.9, label=f"{name}[{c}]")
+        if reference and name in reference:
+            tr, yr = reference[name]
+            axis.plot(np.asarray(tr, float), np.asarray(yr, float), "k--", lw=0.8, label="reference")
+        axis.set_ylabel(f"{name} (deg)", fontsize=8)
+        axis.grid(alpha=0.3)
+        if y.ndim > 1 or (reference and name in reference):
+            axis.legend(fontsize=7)
+    for axis in axes[len(names):]:
+        axis.set_visible(False)
+    for axis in axes[max(0, len(names) - cols):len(names)]:
+        axis.set_xlabel("time (s)")
+        axis.tick_params(labelbottom=True)
+    fig.suptitle(title or "joint angles")
+    return _save(fig, path)
+
+
+def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms: ArrayLike | None = None,
+               H: ArrayLike | None = None, title: str = "") -> Path:
+    """Angular velocity components (rad/s), fit residual (mm) and, if given, H_G and |H_G| over time.
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> t = np.linspace(0, 1, 10); w = np.ones((10, 3))
+    >>> plot_rigid(os.path.join(tempfile.mkdtemp(), "r.png"), t, w, H=w).stat().st_size > 0
+    True
+    """
+    tt = np.asarray(t, float)
+    w = np.asarray(omega, float)
+    panels = 1 + (rms is not None) + (H is not None)
+    fig = Figure(figsize=(9, 2.8 * panels + 0.6), layout="constrained")
+    ax = np.atleast_1d(fig.subplots(panels, 1, sharex=True))
+    for c in range(3):
+        ax[0].plot(tt, w[:, c], lw=0.9, label=f"ω{'xyz'[c]}")
+    ax[0].plot(tt, _norm(w), "k", lw=1.1, label="|ω|")
+    ax[0].set_ylabel("angular velocity (rad/s)")
+    ax[0].legend(fontsize=7, ncol=4)
+    k = 1
+    if rms is not None:
+        ax[k].plot(tt, np.asarray(rms, float), lw=0.9)
+        ax[k].set_ylabel("rigid-fit rms (mm)")
+        k += 1
+    if H is not None:
+        h = np.asarray(H, float)
+        for c in range(3):
+            ax[k].plot(tt, h[:, c], lw=0.9, label=f"H{'XYZ'[c]}")
+        ax[k].plot(tt, _norm(h), "k", lw=1.2, label="|H_G|")
+        ax[k].set_ylabel("H_G (kg·m²/s)")
+        ax[k].legend(fontsize=7, ncol=4)
+    for axis in ax:
+        axis.grid(alpha=0.3)
+    ax[-1].set_xlabel("time (s)")
+    fig.suptitle(title or "rigid-body motion")
+    return _save(fig, path)

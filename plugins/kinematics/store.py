@@ -1,0 +1,223 @@
+"""Marker datasets in a session file: import from C3D / TRC / Qualisys TSV, read back, export.
+
+Layout of one imported marker set (created with :meth:`mirrorlab.core.Session.write_group`)::
+
+    /markers/<name>/                 group
+        points    (T, M, 3) float64  positions in mm, NaN where the marker is missing
+        time      (T,)      float64  s, (first_frame + k) / rate (the source file's clock)
+        @labels        JSON list of M marker names, in column order
+        @rate          float, frames per second (Hz)
+        @units         "mm"
+        @time_unit     "s"
+        @first_frame   int, index of frame 0 in the source file (0-based)
+        @source_file   absolute path of the file read
+        @source_sha256 hex SHA-256 of that file
+        @source_format "c3d", "trc" or "tsv"
+        @kind          "markers"
+
+Anything stored in this layout (also reconstructed markers written by other plugins) can be read
+with :func:`read_markers` and exported with :func:`export_markers`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from mirrorlab.core.store import schema
+
+from .errors import KinematicsIOError
+from .io import MarkerData, read_c3d, read_qualisys_tsv, read_trc, write_c3d, write_csv
+
+__all__ = ["FORMATS", "MARKERS_ROOT", "read_marker_file", "marker_group_path", "import_markers",
+           "read_markers", "export_markers", "sha256_file", "resolve_label", "marker_names"]
+
+#: Top-level group of marker datasets in a session.
+MARKERS_ROOT = "markers"
+#: File suffix -> reader.
+FORMATS = {"c3d": read_c3d, "trc": read_trc, "tsv": read_qualisys_tsv}
+
+
+def sha256_file(path: os.PathLike[str] | str) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def file_format(path: os.PathLike[str] | str, fmt: str = "auto") -> str:
+    """``"c3d"``, ``"trc"`` or ``"tsv"``: ``fmt`` itself, or the file's suffix when ``fmt="auto"``.
+
+    Raises
+    ------
+    KinematicsIOError
+        If the suffix is not one of the supported formats.
+    """
+    if fmt != "auto":
+        if fmt not in FORMATS:
+            raise KinematicsIOError(f"unknown marker file format {fmt!r}; use one of {sorted(FORMATS)}")
+        return fmt
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in FORMATS:
+        raise KinematicsIOError(f"{path}: cannot tell the format from the suffix {Path(path).suffix!r}; "
+                                f"expected .c3d, .trc or .tsv (or pass the format explicitly)")
+    return suffix
+
+
+def read_marker_file(path: os.PathLike[str] | str, fmt: str = "auto") -> MarkerData:
+    """Read a C3D, TRC or Qualisys TSV marker file (format from the suffix unless given).
+
+    Examples
+    --------
+    >>> import tempfile, os
+    >>> p = os.path.join(tempfile.mkdtemp(), "x.c3d")
+    >>> write_c3d(p, ["A", "B", "C"], 50.0, np.zeros((3, 3, 3)))
+    >>> read_marker_file(p).labels
+    ['A', 'B', 'C']
+    """
+    return FORMATS[file_format(path, fmt)](path)
+
+
+def marker_group_path(name: str) -> str:
+    """``/markers/<name>`` after checking that ``name`` is one plain HDF5 name.
+
+    Raises
+    ------
+    KinematicsIOError
+        If the name is empty or contains ``/`` or ``.`` only.
+    """
+    if not name or "/" in name or name in (".", ".."):
+        raise KinematicsIOError(f"marker dataset name {name!r} must be a non-empty name without '/'")
+    return f"/{MARKERS_ROOT}/{name}"
+
+
+def import_markers(session: Any, path: os.PathLike[str] | str, name: str | None = None,
+                   fmt: str = "auto") -> tuple[str, MarkerData]:
+    """Read a marker file and store it as ``/markers/<name>`` in an open, writable session.
+
+    Parameters
+    ----------
+    session : mirrorlab.core.Session
+        Writable session (not recording).
+    path : path-like
+        C3D, TRC or TSV file.
+    name : str, optional
+        Dataset name; default: the file's stem.
+    fmt : {"auto", "c3d", "trc", "tsv"}
+
+    Returns
+    -------
+    group_path, data : str, MarkerData
+
+    Raises
+    ------
+    KinematicsIOError
+        Unreadable file, or ``/markers/<name>`` already present (choose another name).
+    """
+    p = Path(path).resolve()
+    fmt = file_format(p, fmt)
+    name = name or p.stem
+    group = marker_group_path(name)
+    if group.strip("/") in session.file:
+        raise KinematicsIOError(f"{session.path} already holds {group}; pass another name (--name) "
+                                "because marker datasets are never overwritten")
+    data = FORMATS[fmt](p)
+    session.write_group(group, {"points": data.points, "time": data.time}, {
+        "labels": list(data.labels), "rate": float(data.rate), "units": "mm", "time_unit": "s",
+        "first_frame": int(data.first_frame), "source_file": str(p), "source_sha256": sha256_file(p),
+        "source_format": fmt, "kind": "markers",
+    })
+    return group, data
+
+
+def _group_of(file: h5py.File, name: str) -> h5py.Group:
+    key = name.strip("/")
+    if "/" not in key:
+        key = f"{MARKERS_ROOT}/{key}"
+    if key not in file or not isinstance(file[key], h5py.Group) or "points" not in file[key]:
+        have = sorted(file.get(MARKERS_ROOT, {}).keys())
+        raise KinematicsIOError(f"{file.filename} has no marker dataset {name!r} (a group with 'points'); "
+                                f"marker datasets here: {have or 'none'} (`mirrorlab kinematics import` adds one)")
+    return file[key]
+
+
+def marker_names(file: h5py.File) -> list[str]:
+    """Names of the marker datasets under ``/markers``."""
+    return sorted(k for k, g in file.get(MARKERS_ROOT, {}).items() if isinstance(g, h5py.Group) and "points" in g)
+
+
+def read_markers(file: h5py.File, name: str) -> MarkerData:
+    """Read ``/markers/<name>`` (or any group path holding ``points`` in this layout).
+
+    ``labels`` default to ``M1..Mn`` and ``rate`` is derived from ``time`` when the attributes are
+    absent (e.g. markers reconstructed by another plugin).
+
+    Raises
+    ------
+    KinematicsIOError
+        No such group, or ``points`` not (T, M, 3).
+    """
+    g = _group_of(file, name)
+    pts = np.asarray(g["points"][()], dtype=float)
+    if pts.ndim != 3 or pts.shape[2] != 3:
+        raise KinematicsIOError(f"{g.name}/points has shape {pts.shape}; expected (frames, markers, 3)")
+    labels = schema.get_json(g, "labels", None) or [f"M{k + 1}" for k in range(pts.shape[1])]
+    if len(labels) != pts.shape[1]:
+        raise KinematicsIOError(f"{g.name}: {len(labels)} labels for {pts.shape[1]} markers")
+    first = int(g.attrs.get("first_frame", 0))
+    if "rate" in g.attrs:
+        rate = float(g.attrs["rate"])
+    elif "time" in g and g["time"].shape[0] > 1:
+        rate = float(1.0 / np.median(np.diff(g["time"][()])))
+    else:
+        raise KinematicsIOError(f"{g.name} has neither a 'rate' attribute nor a 'time' dataset")
+    return MarkerData(list(labels), rate, pts, first)
+
+
+def marker_time(file: h5py.File, name: str) -> np.ndarray:
+    """The ``time`` dataset of a marker group (or ``(first_frame + k) / rate``)."""
+    g = _group_of(file, name)
+    if "time" in g:
+        return np.asarray(g["time"][()], dtype=float)
+    return read_markers(file, name).time
+
+
+def export_markers(data: MarkerData, out: os.PathLike[str] | str, fmt: str) -> None:
+    """Write marker data as ``csv`` (:func:`~.io.write_csv`) or ``c3d`` (:func:`~.io.write_c3d`)."""
+    if fmt == "csv":
+        write_csv(out, data.labels, data.rate, data.points, first_frame=data.first_frame)
+    elif fmt == "c3d":
+        write_c3d(out, data.labels, data.rate, data.points)
+    else:
+        raise KinematicsIOError(f"unknown export format {fmt!r}; use csv or c3d")
+
+
+def resolve_label(labels: list[str], wanted: str) -> int:
+    """Column of marker ``wanted``: an exact label, else the unique label ending in ``:<wanted>``.
+
+    Raises
+    ------
+    KinematicsIOError
+        Unknown or ambiguous label (the message lists close matches).
+
+    Examples
+    --------
+    >>> resolve_label(["Subj:STER", "Subj:XIPH"], "XIPH")
+    1
+    """
+    if wanted in labels:
+        return labels.index(wanted)
+    tail = [i for i, lab in enumerate(labels) if lab.split(":")[-1] == wanted]
+    if len(tail) == 1:
+        return tail[0]
+    if len(tail) > 1:
+        raise KinematicsIOError(f"marker {wanted!r} is ambiguous: {[labels[i] for i in tail]}; give the full label")
+    near = [lab for lab in labels if wanted.lower() in lab.lower()]
+    raise KinematicsIOError(f"no marker {wanted!r}; similar labels: {near or labels[:12]}")

@@ -1,0 +1,307 @@
+"""``mirrorlab calibrate`` and ``mirrorlab reconstruct`` (see ``docs/photogrammetry.md``).
+
+Both run the registered algorithms: with a session file through :meth:`Session.run` (result with
+provenance under ``/results/<algorithm>/run-NNNN``), otherwise through
+:func:`mirrorlab.core.algorithms.execute`. Exit codes follow the CLI convention: 0 ok, 1 failed
+run (e.g. degenerate geometry naming frame and marker), 2 usage or malformed input (a CSV problem
+names file, line and reason).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mirrorlab.core.algorithms import Algorithm, RunContext, execute
+from mirrorlab.core.clock import SessionClock
+from mirrorlab.core.cli.options import add_parameter_options, collected
+from mirrorlab.core.cli.progress import progress_bar
+from mirrorlab.core.errors import Problem, ValidationError
+from mirrorlab.core.events import EventBus
+from mirrorlab.core.session import Session
+
+from .camera_arrays import CAMERA_KEYS, camera_kind
+from .csvio import read_columns_csv, read_marker_csv, write_points_csv
+from .errors import PhotogrammetryError
+
+__all__ = ["add"]
+
+
+def _algorithms() -> dict[str, type[Algorithm]]:
+    from .plugin import (CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror,
+                         ReconstructParallel)
+
+    return {"calibrate_plane": CalibratePlane, "calibrate_pinhole": CalibratePinhole,
+            "parallel": ReconstructParallel, "central": ReconstructCentral, "mirror": ReconstructMirror}
+
+
+def add(sub: argparse._SubParsersAction) -> None:
+    """Register ``calibrate`` and ``reconstruct`` on the ``mirrorlab`` sub-command parser."""
+    algs = _algorithms()
+    c = sub.add_parser(
+        "calibrate", help="calibrate a camera from chessboard photos or from calibration points (CSV)",
+        description="Calibrate a camera. Pinhole from chessboard photos: --images DIR --pattern 10x7 --square MM. "
+                    "Thesis plane map from points: --points FILE.csv (columns x,y,plane_x,plane_y) "
+                    "--camera-center X,Y,Z. Writes /calibration/<camera> into --session FILE (created if "
+                    "missing), or prints JSON with --json.")
+    src = c.add_argument_group("source (one of)")
+    src.add_argument("--images", metavar="DIR|GLOB", help="chessboard photos (pinhole calibration)")
+    src.add_argument("--points", type=Path, metavar="CSV", help="calibration points x,y,plane_x,plane_y (plane map)")
+    c.add_argument("--pattern", help="chessboard inner corners COLSxROWS, e.g. 10x7")
+    c.add_argument("--square", type=float, default=1.0, help="chessboard square side [mm] (default 1)")
+    c.add_argument("--detector", choices=("classic", "sb"), default="classic", help="corner detector")
+    c.add_argument("--camera-center", metavar="X,Y,Z", help="camera centre F1 [mm] (plane map)")
+    c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
+    c.add_argument("--camera", default="cam", help="camera name (default cam)")
+    c.add_argument("--json", action="store_true", help="print the camera as JSON (input of reconstruct --camera-file)")
+    c.add_argument("--no-progress", action="store_true")
+    add_parameter_options(c, algs["calibrate_plane"].parameters, "calibrate_plane parameters")
+    add_parameter_options(c, algs["calibrate_pinhole"].parameters, "calibrate_pinhole parameters")
+    c.set_defaults(func=calibrate)
+
+    r = sub.add_parser(
+        "reconstruct", help="3-D markers from 2-D marker data: --method parallel|central|mirror",
+        description="Reconstruct 3-D markers from 2-D marker image coordinates in a session (--input NAME=/DATASET) "
+                    "or a CSV file (--markers; columns frame,marker,x,y and for the mirror method xv,yv). "
+                    "Writes the result into SESSION (with provenance) and/or a points CSV (--out).")
+    r.add_argument("session", type=Path, nargs="?", help="session file (created if missing when the data come from CSV)")
+    r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"))
+    r.add_argument("--markers", type=Path, metavar="CSV", help="marker image coordinates (frame,marker,x,y[,xv,yv])")
+    r.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
+                   help="an algorithm input from a dataset of SESSION (e.g. real_xy=/truth/real_xy)")
+    r.add_argument("--calibration", metavar="/GROUP", help="camera from a calibration group of SESSION, e.g. /calibration/cam")
+    r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from `mirrorlab calibrate --json` output")
+    for flag, what in (("--mirror-point", "X,Y,Z point G on the mirror [mm] (mirror)"),
+                       ("--normal", "X,Y,Z mirror normal toward the camera (mirror; estimated from the data if absent)"),
+                       ("--lengths", "D1,D2,... link lengths [mm] (parallel, central)"),
+                       ("--signs", "S1,S2,... +1/-1 per link (parallel; central: 0 = undecided)"),
+                       ("--principal-point", "X,Y image of the optical axis (central)"),
+                       ("--start", "X,Y,Z chain start instead of K [mm] (central)")):
+        r.add_argument(flag, metavar="V1,V2,...|/DATASET", help=what)
+    r.add_argument("--out", type=Path, metavar="CSV", help="write points (frame,marker,X,Y,Z,...) to this CSV")
+    r.add_argument("--json", action="store_true", help="print a JSON summary")
+    r.add_argument("--no-progress", action="store_true")
+    for method in ("mirror", "parallel", "central"):
+        add_parameter_options(r, algs[method].parameters, f"{method} parameters")
+    r.set_defaults(func=reconstruct)
+
+
+# ------------------------------------------------------------------------------------------------ helpers
+
+
+def _vector(text: str, option: str) -> np.ndarray:
+    try:
+        return np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise ValidationError([Problem(option, f"{text!r} is not a comma-separated list of numbers")]) from None
+
+
+def _params_for(args: argparse.Namespace, algorithm: type[Algorithm], others: list[type[Algorithm]]) -> dict[str, Any]:
+    given = collected(args)
+    mine = {p.name for p in algorithm.parameters}
+    foreign = sorted(k for k in given if k not in mine and any(k in {p.name for p in o.parameters} for o in others))
+    if foreign:
+        raise ValidationError([Problem("--" + k.replace("_", "-"), f"does not apply to {algorithm.name}") for k in foreign])
+    return {k: v for k, v in given.items() if k in mine}
+
+
+@contextmanager
+def _session(path: Path | None, create: bool, description: str) -> Iterator[Session | None]:
+    if path is None:
+        yield None
+        return
+    if path.exists():
+        s = Session.open(path, writable=True)
+    elif create:
+        s = Session.create(path, description=description)
+    else:
+        raise ValidationError([Problem("SESSION", "no such session file; check the path", str(path))])
+    with s:
+        yield s
+
+
+def _run(session: Session | None, algorithm: type[Algorithm], inputs: dict[str, Any], params: dict[str, Any],
+         progress: bool) -> tuple[dict[str, np.ndarray], str]:
+    """Run through the session (stored with provenance) or directly; raise on a failed run."""
+    with progress_bar(progress) as on_event:
+        if session is not None:
+            session.events.subscribe(on_event)
+            ref = session.run(algorithm, inputs, params)
+            if ref.status != "ok":
+                raise PhotogrammetryError(f"{ref.path} failed: {ref.error}")
+            return session.result(ref).outputs, ref.path
+        bus = EventBus(SessionClock())
+        bus.subscribe(on_event)
+        outcome = execute(algorithm, inputs, params,
+                          RunContext(lambda d, t, m: bus.progress(algorithm.name, d, t, m)))
+    if outcome.status != "ok":
+        raise PhotogrammetryError(f"{algorithm.name} failed: {outcome.error}")
+    return {k: np.asarray(v) for k, v in outcome.outputs.items()}, ""
+
+
+def _jsonable(value: Any) -> Any:
+    a = np.asarray(value)
+    if a.dtype.kind == "S":
+        return [x.decode() for x in a.ravel()]
+    return a.tolist() if a.ndim else a.item()
+
+
+# ------------------------------------------------------------------------------------------------ calibrate
+
+
+def calibrate(args: argparse.Namespace) -> int:
+    algs = _algorithms()
+    if bool(args.images) == bool(args.points):
+        raise ValidationError([Problem("calibrate", "give exactly one source: --images DIR (chessboard photos) or "
+                                                    "--points FILE.csv (calibration points)")])
+    if args.session is None and not args.json:
+        raise ValidationError([Problem("calibrate", "say where the camera goes: --session FILE and/or --json")])
+    extra: dict[str, Any] = {}
+    attrs: dict[str, Any] = {}
+    if args.images:
+        from .plugin import chessboard_inputs
+
+        algorithm = algs["calibrate_pinhole"]
+        if not args.pattern:
+            raise ValidationError([Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7")])
+        if args.square <= 0:
+            raise ValidationError([Problem("--square", f"must be > 0 mm, got {args.square}")])
+        params = _params_for(args, algorithm, [algs["calibrate_plane"]])
+        with progress_bar(not args.no_progress) as on_event:
+            bus = EventBus(SessionClock())
+            bus.subscribe(on_event)
+            bus.progress("detect", 0, None, "detecting chessboard corners")
+            inputs, found = chessboard_inputs(args.images, args.pattern, args.square, args.detector)
+            bus.progress("detect", 1, 1, "done")
+        extra = {"image_points": inputs["image_points"], "object_points": inputs["object_points"]}
+        attrs = {"images": str(args.images), "pattern": args.pattern, "square_mm": args.square, **found}
+    else:
+        algorithm = algs["calibrate_plane"]
+        if not args.camera_center:
+            raise ValidationError([Problem("--camera-center", "required with --points: camera centre X,Y,Z in mm")])
+        center = _vector(args.camera_center, "--camera-center")
+        if center.shape != (3,):
+            raise ValidationError([Problem("--camera-center", f"needs 3 numbers X,Y,Z, got {center.size}")])
+        params = _params_for(args, algorithm, [algs["calibrate_pinhole"]])
+        cols = read_columns_csv(args.points, ("x", "y", "plane_x", "plane_y"))
+        inputs = {"image_xy": np.c_[cols["x"], cols["y"]], "plane_xy": np.c_[cols["plane_x"], cols["plane_y"]],
+                  "camera_center": center}
+        attrs = {"points_csv": str(args.points)}
+    with _session(args.session, True, "mirrorlab calibrate") as s:
+        if s is not None:
+            from .plugin import require_new_camera, store_calibration
+
+            require_new_camera(s, args.camera)
+            ref = s.run(algorithm, inputs, params)
+            store_calibration(s, args.camera, ref, extra, attrs)
+            outputs, where = s.result(ref).outputs, f"/calibration/{args.camera}"
+        else:
+            outputs, where = _run(None, algorithm, inputs, params, not args.no_progress)
+    model = camera_kind(outputs)
+    if args.json:
+        doc = {"camera": args.camera, "model": model, "algorithm": algorithm.name, "session": str(args.session or ""),
+               "group": where if args.session else "", **{k: _jsonable(v) for k, v in outputs.items()},
+               **{k: v for k, v in attrs.items() if k in ("found", "missing")}}
+        print(json.dumps(doc, indent=1))
+    else:
+        unit = "px" if model == "pinhole" else "mm"
+        line = f"{where}: {model} camera, RMS {float(outputs['rms']):.4g} {unit}"
+        if model == "pinhole":
+            K = outputs["camera_matrix"]
+            line += f", fx {K[0, 0]:.2f}, fy {K[1, 1]:.2f}, cx {K[0, 2]:.2f}, cy {K[1, 2]:.2f} px, " \
+                    f"{len(attrs.get('found', []))} views ({len(attrs.get('missing', []))} without board)"
+        print(line)
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------ reconstruct
+
+_VECTOR_OPTIONS = {"mirror_point": "mirror_point", "normal": "normal", "lengths": "lengths", "signs": "signs",
+                   "principal_point": "principal_point", "start": "start"}
+
+
+def _camera_inputs(args: argparse.Namespace, session: Session | None, algorithm: type[Algorithm]) -> dict[str, Any]:
+    if args.calibration and args.camera_file:
+        raise ValidationError([Problem("--calibration", "give --calibration or --camera-file, not both")])
+    if args.calibration:
+        if session is None:
+            raise ValidationError([Problem("--calibration", "a calibration group needs SESSION; or use --camera-file")])
+        from .plugin import calibration_inputs
+
+        return dict(calibration_inputs(session, args.calibration, algorithm))
+    if args.camera_file:
+        try:
+            doc = json.loads(Path(args.camera_file).read_text())
+        except (OSError, ValueError) as exc:
+            raise ValidationError([Problem("--camera-file", f"not a readable JSON camera ({exc})",
+                                           str(args.camera_file))]) from None
+        return {k: np.asarray(v, float) for k, v in doc.items() if k in CAMERA_KEYS}
+    return {}
+
+
+def reconstruct(args: argparse.Namespace) -> int:
+    algs = _algorithms()
+    algorithm = algs[args.method]
+    params = _params_for(args, algorithm, [algs[m] for m in ("parallel", "central", "mirror")])
+    if args.session is None and args.out is None:
+        raise ValidationError([Problem("reconstruct", "say where the result goes: SESSION and/or --out FILE.csv")])
+    if not args.markers and not args.input:
+        raise ValidationError([Problem("reconstruct", "give the 2-D data: --markers FILE.csv or --input NAME=/DATASET")])
+    csv_inputs: dict[str, Any] = {}
+    if args.markers:
+        names = ("x", "y", "xv", "yv") if args.method == "mirror" else ("x", "y")
+        table = read_marker_csv(args.markers, names)
+        if args.method == "mirror":
+            csv_inputs = {"real_xy": table.xy("x", "y"), "virtual_xy": table.xy("xv", "yv")}
+        else:
+            csv_inputs = {"image_xy": table.xy("x", "y")}
+    with _session(args.session, bool(args.markers), f"mirrorlab reconstruct --method {args.method}") as s:
+        inputs: dict[str, Any] = {**_camera_inputs(args, s, algorithm), **csv_inputs}
+        for item in args.input:
+            name, sep, path = item.partition("=")
+            if not sep or not path.startswith("/"):
+                raise ValidationError([Problem("--input", f"{item!r} is not NAME=/DATASET")])
+            if s is None:
+                raise ValidationError([Problem("--input", "dataset inputs need SESSION")])
+            inputs[name] = path
+        for option, name in _VECTOR_OPTIONS.items():
+            text = getattr(args, option)
+            if text is None:
+                continue
+            if text.startswith("/"):
+                if s is None:
+                    raise ValidationError([Problem(f"--{option.replace('_', '-')}", "a dataset path needs SESSION")])
+                inputs[name] = text
+            else:
+                inputs[name] = _vector(text, f"--{option.replace('_', '-')}")
+        declared = {p.name for p in algorithm.inputs}
+        unknown = sorted(set(inputs) - declared)
+        if unknown:
+            raise ValidationError([Problem(f"inputs.{k}", f"{algorithm.name} takes no input {k!r}; it takes: "
+                                           f"{', '.join(sorted(declared))}") for k in unknown])
+        outputs, where = _run(s, algorithm, inputs, params, not args.no_progress)
+    points = outputs["points"]
+    if args.out is not None:
+        extra = {"mirror": ("gap", "angle"), "central": ("signs", "tangent_ray"),
+                 "parallel": ("segment_in_image_plane",)}[args.method]
+        write_points_csv(args.out, points, {k: outputs[k] for k in extra})
+    ok = np.isfinite(points).all(-1)
+    summary = {"method": args.method, "algorithm": algorithm.name, "result": where, "out": str(args.out or ""),
+               "frames": int(points.shape[0]), "markers": int(points.shape[1]), "reconstructed": int(ok.sum())}
+    if "gap" in outputs and ok.any():
+        summary["median_gap_mm"] = float(np.nanmedian(outputs["gap"]))
+    if args.json:
+        print(json.dumps(summary, indent=1))
+    else:
+        dest = " and ".join(x for x in (where, str(args.out or "")) if x)
+        gap = f", median gap {summary['median_gap_mm']:.3g} mm" if "median_gap_mm" in summary else ""
+        print(f"{dest}: {summary['reconstructed']} of {summary['frames']} x {summary['markers']} markers "
+              f"reconstructed ({args.method}){gap}")
+    return 0
+

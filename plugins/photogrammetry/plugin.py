@@ -1,0 +1,644 @@
+"""Framework adapters of the photogrammetry functions: algorithms, recipe steps and CLI commands.
+
+Algorithms (``mirrorlab plugins`` lists them; ``mirrorlab analyze NAME --help`` shows their options):
+``calibrate_plane``, ``calibrate_pinhole``, ``mirror_normal``, ``reconstruct_parallel``,
+``reconstruct_central``, ``reconstruct_mirror``, ``mirror_error_analysis``. Each is a thin wrapper:
+the mathematics lives in :mod:`.cameras`, :mod:`.frames`, :mod:`.mirror` and :mod:`.sensitivity`.
+
+Recipe steps: ``calibrate`` (run a calibration algorithm, optionally on chessboard image files, and
+store the camera under ``/calibration/<camera>``) and ``reconstruct`` (run a reconstruction with
+the camera arrays taken from such a group). CLI: ``mirrorlab calibrate`` and
+``mirrorlab reconstruct`` (:mod:`.cli`). See ``docs/photogrammetry.md``.
+"""
+
+from __future__ import annotations
+
+import glob
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
+from mirrorlab.core.errors import PluginError, Problem, SessionError
+from mirrorlab.core.steps import Step
+
+from .camera_arrays import CAMERA_KEYS, camera_from_arrays, camera_kind, pinhole_arrays, plane_arrays
+from .cameras import calibrate_pinhole, find_chessboard_corners, fit_plane_calibration
+from .central import CentralCamera
+from .errors import CalibrationError, InvalidArgument, PhotogrammetryError
+from .frames import _renumber, image_to_film, mirror_normal_frames, reconstruct_central_frames, \
+    reconstruct_mirror_frames, reconstruct_parallel_frames
+from .sensitivity import MirrorScene, mirror_angle_sweep, mirror_reconstruct, monte_carlo, \
+    mirror_point_sensitivity, sphere_points
+
+if TYPE_CHECKING:
+    from mirrorlab.core.registry import Registry
+    from mirrorlab.core.session import ResultRef, Session
+
+_CAMERA_PORTS = (
+    Port("plane_coefficients", "plane calibration: (6, 2) quadratic or (8 + k,) projective coefficients", "",
+         optional=True),
+    Port("plane_center", "plane calibration: (2,) image normalisation centre", "px", optional=True),
+    Port("plane_scale", "plane calibration: () image normalisation scale", "px", optional=True),
+    Port("plane_z", "plane calibration: () Z of the calibration plane", "mm", optional=True),
+    Port("camera_center", "plane calibration: (3,) camera centre F1", "mm", optional=True),
+    Port("camera_matrix", "pinhole: (3, 3) intrinsic matrix K", "px", optional=True),
+    Port("dist_coeffs", "pinhole: (k,) OpenCV distortion coefficients", "", optional=True),
+    Port("rotation", "pinhole: (3, 3) world -> camera rotation", "", optional=True),
+    Port("translation", "pinhole: (3,) world -> camera translation", "mm", optional=True),
+)
+
+
+def _camera(inputs: Mapping[str, np.ndarray]) -> Any:
+    return camera_from_arrays({k: inputs[k] for k in CAMERA_KEYS if k in inputs})
+
+
+def _optional(inputs: Mapping[str, np.ndarray], name: str) -> np.ndarray | None:
+    value = inputs.get(name)
+    return None if value is None else np.asarray(value)
+
+
+# ------------------------------------------------------------------------------------------------ calibration
+
+
+class CalibratePlane(Algorithm):
+    """Thesis image -> calibration-plane map (eqs 3.15–3.20) or a homography with radial terms."""
+
+    name = "calibrate_plane"
+    version = "1.0.0"
+    description = "plane calibration: quadratic image -> plane map (thesis 3.15-3.20) or projective (homography)"
+    parameters = ParameterSet(
+        Parameter("model", str, "quadratic", choices=("quadratic", "projective"),
+                  help="quadratic: thesis (exact only with the film parallel to the plane); projective: any tilt"),
+        Parameter("plane_z", float, 0.0, unit="mm", help="Z of the calibration plane"),
+        Parameter("radial_terms", int, 0, bounds=(0, 6), help="radial distortion terms of the projective model"),
+        Parameter("solver", str, "lstsq", choices=("lstsq", "normal_equations"),
+                  help="quadratic: QR least squares, or the thesis normal equations (3.19)"),
+        Parameter("max_condition", float, 1e10, bounds=(1.0, None), help="largest accepted condition number"),
+    )
+    inputs = (Port("image_xy", "(N, 2) image coordinates of the calibration points", "px"),
+              Port("plane_xy", "(N, 2) their X, Y on the calibration plane", "mm"),
+              Port("camera_center", "(3,) camera centre F1 (object-space principal point)", "mm"))
+    outputs = (Port("plane_coefficients", "(6, 2) quadratic or (8 + k,) projective coefficients (normalised image)"),
+               Port("plane_center", "(2,) image normalisation centre", "px"),
+               Port("plane_scale", "() image normalisation scale", "px"),
+               Port("plane_z", "() Z of the calibration plane", "mm"),
+               Port("camera_center", "(3,) camera centre F1", "mm"),
+               Port("residuals", "(N, 2) mapped minus true plane coordinates", "mm"),
+               Port("rms", "() RMS residual", "mm"), Port("max_residual", "() largest residual", "mm"),
+               Port("condition", "() condition number of the fit"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        context.progress(0, 1, "fitting")
+        cal = fit_plane_calibration(inputs["image_xy"], inputs["plane_xy"], params["plane_z"], inputs["camera_center"],
+                                    model=params["model"], solver=params["solver"],
+                                    radial_terms=params["radial_terms"], max_condition=params["max_condition"])
+        context.progress(1, 1, "done")
+        return {**plane_arrays(cal), "residuals": cal.residuals, "rms": cal.rms, "max_residual": cal.max_residual,
+                "condition": cal.condition}
+
+
+class CalibratePinhole(Algorithm):
+    """Zhang calibration (cv2.calibrateCamera) from views of a planar target."""
+
+    name = "calibrate_pinhole"
+    version = "1.0.0"
+    description = "pinhole + distortion camera from views of a planar grid (OpenCV, Zhang)"
+    parameters = ParameterSet(
+        Parameter("fix_aspect_ratio", bool, False, help="constrain fx = fy (CALIB_FIX_ASPECT_RATIO)"),
+        Parameter("reference_view", int, 0, bounds=(0, None), help="view whose board frame becomes the world frame"),
+    )
+    inputs = (Port("object_points", "(views, M, 3) target points (Z = 0 for a board)", "mm"),
+              Port("image_points", "(views, M, 2) detected image points; NaN rows are skipped", "px"),
+              Port("image_size", "(2,) width, height", "px"))
+    outputs = (Port("camera_matrix", "(3, 3) intrinsic matrix K", "px"),
+               Port("dist_coeffs", "(k,) distortion k1, k2, p1, p2, k3", ""),
+               Port("rotation", "(3, 3) world -> camera rotation of the reference view"),
+               Port("translation", "(3,) world -> camera translation of the reference view", "mm"),
+               Port("camera_center", "(3,) camera centre in the reference board frame", "mm"),
+               Port("rms", "() RMS reprojection error", "px"),
+               Port("per_view_rms", "(views,) RMS reprojection error per view", "px"),
+               Port("view_rotations", "(views, 3, 3) rotation of every view"),
+               Port("view_translations", "(views, 3) translation of every view", "mm"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        obj = np.asarray(inputs["object_points"], float)
+        img = np.asarray(inputs["image_points"], float)
+        if obj.ndim != 3 or img.ndim != 3 or obj.shape[:2] != img.shape[:2] or obj.shape[2] != 3 or img.shape[2] != 2:
+            raise InvalidArgument(f"object_points must be (views, M, 3) and image_points (views, M, 2) with the same "
+                                  f"views and M; got {obj.shape} and {img.shape}")
+        keep = np.isfinite(img).all(-1) & np.isfinite(obj).all(-1)
+        size = np.asarray(inputs["image_size"]).astype(int).ravel()
+        if params["reference_view"] >= obj.shape[0]:
+            raise InvalidArgument(f"reference_view {params['reference_view']} does not exist ({obj.shape[0]} views)")
+        context.progress(0, 1, f"calibrating from {obj.shape[0]} views")
+        cam = calibrate_pinhole([o[k] for o, k in zip(obj, keep)], [i[k] for i, k in zip(img, keep)],
+                                (int(size[0]), int(size[1])), fix_aspect_ratio=params["fix_aspect_ratio"],
+                                reference_view=params["reference_view"])
+        context.progress(1, 1, "done")
+        return {**pinhole_arrays(cam), "rms": cam.rms, "per_view_rms": cam.per_view_rms,
+                "view_rotations": np.stack([R for R, _ in cam.views]),
+                "view_translations": np.stack([t for _, t in cam.views])}
+
+
+# ------------------------------------------------------------------------------------------------ mirror
+
+
+class MirrorNormalAlgorithm(Algorithm):
+    """Mirror normal from markers seen directly and in the mirror (eqs 3.8–3.10)."""
+
+    name = "mirror_normal"
+    version = "1.0.0"
+    description = "mirror normal (and virtual camera) from marker / mirror-image pairs (thesis 3.8-3.12)"
+    parameters = ParameterSet(
+        Parameter("method", str, "lstsq", choices=("lstsq", "thesis"),
+                  help="least squares over all pairs, or the Appendix 2 average of pair groups"),
+        Parameter("per_frame", bool, False, help="one normal per frame (mirror moving)"),
+    )
+    inputs = (Port("real_xy", "(frames, markers, 2) direct images, NaN if not seen", "px"),
+              Port("virtual_xy", "(frames, markers, 2) mirror images, NaN if not seen", "px"),
+              Port("mirror_point", "(3,) point G on the mirror (orients the normal, gives F2)", "mm", optional=True),
+              *_CAMERA_PORTS)
+    outputs = (Port("normal", "(3,) or (frames, 3) unit normal toward the camera"),
+               Port("residual", "() or (frames,) RMS misfit of the pair planes (≈ rad)", "rad"),
+               Port("pairs", "() or (frames,) pairs used"),
+               Port("virtual_center", "(3,) or (frames, 3) virtual camera F2 (NaN without mirror_point)", "mm"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        cam = _camera(inputs)
+        G = _optional(inputs, "mirror_point")
+        context.progress(0, 1, "estimating")
+        n, resid, pairs = mirror_normal_frames(cam, inputs["real_xy"], inputs["virtual_xy"], G, params["method"],
+                                               params["per_frame"])
+        if G is None:
+            F2 = np.full(n.shape, np.nan)
+        else:
+            F1 = np.asarray(cam.camera_center, float)
+            F2 = F1 - 2.0 * (((F1 - G.reshape(3)) * n).sum(-1))[..., None] * n  # (3.11)
+        context.progress(1, 1, "done")
+        return {"normal": n, "residual": resid, "pairs": pairs, "virtual_center": F2}
+
+
+#: Markers per block of the frame-chunked reconstruction (progress, cancellation, bounded memory).
+_BLOCK = 250_000
+
+
+class ReconstructMirror(Algorithm):
+    """One camera + one plane mirror: markers from their direct and mirror images (thesis §3.2)."""
+
+    name = "reconstruct_mirror"
+    version = "1.0.0"
+    description = "mirror method: 3-D markers from direct and mirror images with one camera (thesis 3.1-3.13)"
+    parameters = ParameterSet(
+        Parameter("triangulation", str, "midpoint", choices=("midpoint", "optimal"),
+                  help="thesis midpoint (3.5-3.7), or minimum reprojection error"),
+        Parameter("max_gap", float, 0.0, unit="mm", bounds=(0.0, None),
+                  help="reject markers whose rays miss each other by more (0: no limit)"),
+        Parameter("on_degenerate", str, "raise", choices=("raise", "nan"),
+                  help="degenerate markers fail the run naming frame and marker, or become NaN"),
+        Parameter("normal_method", str, "lstsq", choices=("lstsq", "thesis"),
+                  help="normal from the data when no normal is given: least squares or the thesis average"),
+        Parameter("per_frame_normal", bool, False, help="estimate the normal per frame (moving mirror)"),
+    )
+    inputs = (Port("real_xy", "(frames, markers, 2) direct images, NaN if not seen", "px"),
+              Port("virtual_xy", "(frames, markers, 2) mirror images, NaN if not seen", "px"),
+              Port("mirror_point", "(3,) point G on the mirror", "mm"),
+              Port("normal", "(3,) or (frames, 3) mirror normal toward the camera; estimated from the data if absent",
+                   optional=True),
+              *_CAMERA_PORTS)
+    outputs = (Port("points", "(frames, markers, 3) marker positions, NaN where not reconstructed", "mm"),
+               Port("gap", "(frames, markers) miss distance of the real and mirror rays", "mm"),
+               Port("angle", "(frames, markers) intersection angle of the rays", "rad"),
+               Port("normal", "(3,) or (frames, 3) mirror normal used"),
+               Port("virtual_center", "(3,) or (frames, 3) virtual camera F2", "mm"),
+               Port("reprojection", "(frames, markers) RMS reprojection error (optimal only, else NaN)", "px"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        cam = _camera(inputs)
+        real = np.asarray(inputs["real_xy"], float)
+        virt = np.asarray(inputs["virtual_xy"], float)
+        if real.ndim == 2:
+            real, virt = real[None], virt[None]
+        G = np.asarray(inputs["mirror_point"], float)
+        normal = _optional(inputs, "normal")
+        if normal is None:
+            context.progress(0, None, "mirror normal from the data")
+            normal = mirror_normal_frames(cam, real, virt, G, params["normal_method"], params["per_frame_normal"])[0]
+        n_frames = real.shape[0]
+        step = max(1, _BLOCK // max(1, real.shape[1]))
+        parts = []
+        for lo in range(0, n_frames, step):  # blocks of frames, each vectorised
+            context.progress(lo, n_frames, "triangulating")
+            hi = min(lo + step, n_frames)
+            n_block = normal[lo:hi] if normal.ndim == 2 else normal
+            try:
+                parts.append(reconstruct_mirror_frames(
+                    cam, real[lo:hi], virt[lo:hi], G, n_block, params["triangulation"],
+                    params["max_gap"] or None, params["on_degenerate"]))
+            except PhotogrammetryError as exc:
+                raise _renumber(exc, np.arange(lo, hi)) from exc
+        context.progress(n_frames, n_frames, "done")
+        cat = (lambda k: np.concatenate([getattr(p, k) for p in parts]))
+        per_frame = normal.ndim == 2
+        return {"points": cat("points"), "gap": cat("gap"), "angle": cat("angle"),
+                "normal": cat("normal") if per_frame else parts[0].normal,
+                "virtual_center": cat("virtual_center") if per_frame else parts[0].virtual_center,
+                "reprojection": cat("reprojection")}
+
+
+# ------------------------------------------------------------------------------------------------ chains
+
+
+class ReconstructParallel(Algorithm):
+    """Chains of markers with known link lengths under parallel projection (thesis §2.2)."""
+
+    name = "reconstruct_parallel"
+    version = "1.0.0"
+    description = "parallel projection: marker chain with known link lengths from one view (thesis 2.7-2.11)"
+    parameters = ParameterSet(
+        Parameter("magnification", float, 1.0, bounds=(1e-12, None),
+                  help="object mm per image unit (L / ell, times the pixel size for pixel input)"),
+        Parameter("tol_radicand", float, 1e-3, bounds=(0.0, 1.0),
+                  help="clamp negative radicands down to -tol * D^2 (flag segment_in_image_plane)"),
+    )
+    inputs = (Port("image_xy", "(frames, N, 2) image coordinates of markers 0..N-1 (0 = reference), NaN if not seen"),
+              Port("lengths", "(N-1,) or (frames, N-1) link lengths, link n joins markers n-1 and n", "mm"),
+              Port("signs", "(N-1,) or (frames, N-1) +1 if marker n is further from the camera than n-1, else -1"))
+    outputs = (Port("points", "(frames, N, 3) markers in the frame of marker 0 (Z along the view)", "mm"),
+               Port("segment_in_image_plane", "(frames, N) radicand clamped to 0"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        context.progress(0, 1, "reconstructing")
+        pts, flag = reconstruct_parallel_frames(inputs["image_xy"], inputs["lengths"], params["magnification"],
+                                                inputs["signs"], params["tol_radicand"])
+        context.progress(1, 1, "done")
+        return {"points": pts, "segment_in_image_plane": flag}
+
+
+class ReconstructCentral(Algorithm):
+    """Chains of markers with known link lengths from one tilted central projection (thesis §2.3)."""
+
+    name = "reconstruct_central"
+    version = "1.0.0"
+    description = "central projection: marker chain with known link lengths from one tilted camera (thesis 2.12-2.28)"
+    parameters = ParameterSet(
+        Parameter("a", float, None, unit="mm", bounds=(0.0, None), help="distance film -> reference point K"),
+        Parameter("f", float, None, unit="mm", bounds=(0.0, None), help="focal length"),
+        Parameter("alpha", float, 0.0, unit="rad", bounds=(-1.5, 1.5), help="tilt of the optical axis, + looking down"),
+        Parameter("pixel_size", float, 1.0, unit="mm", bounds=(0.0, None),
+                  help="film mm per image unit (1 when image_xy is already film mm)"),
+        Parameter("y_down", bool, False, help="image y points down (pixel rows); the film y of the thesis points up"),
+        Parameter("tol_z", float, 0.5, unit="mm", bounds=(0.0, None), help="roots closer than this coincide"),
+        Parameter("beta_max", float, float(np.radians(2.0)), unit="rad", bounds=(0.0, 1.0),
+                  help="auxiliary-marker test: largest accepted misalignment"),
+        Parameter("beta_sep", float, float(np.radians(1.0)), unit="rad", bounds=(0.0, 1.0),
+                  help="auxiliary-marker test: required separation of the two roots"),
+    )
+    inputs = (Port("image_xy", "(frames, N, 2) images of markers 1..N in chain order (K is marker 0), NaN if not seen"),
+              Port("lengths", "(N,) or (frames, N) link lengths, the first from K", "mm"),
+              Port("signs", "(N,) or (frames, N) root per link: +1 far, -1 near, 0 undecided", optional=True),
+              Port("aux_xy", "(frames, N, 2) auxiliary marker on each link, NaN if none", optional=True),
+              Port("aux_lengths", "(N,) distance of each auxiliary marker from the previous marker", "mm",
+                   optional=True),
+              Port("principal_point", "(2,) image of the optical axis, in image units", optional=True),
+              Port("start", "(3,) chain start instead of K", "mm", optional=True))
+    outputs = (Port("points", "(frames, N, 3) markers 1..N (world frame of thesis §2.3)", "mm"),
+               Port("signs", "(frames, N) root used (0: coincident roots, or not reconstructed)"),
+               Port("tangent_ray", "(frames, N) ray (nearly) tangent to the link sphere"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        cam = CentralCamera(params["a"], params["f"], params["alpha"])
+        pp = _optional(inputs, "principal_point")
+
+        def film(xy: np.ndarray | None) -> np.ndarray | None:
+            return None if xy is None else image_to_film(xy, params["pixel_size"], pp, params["y_down"])
+
+        context.progress(0, 1, "reconstructing")
+        pts, signs, tangent = reconstruct_central_frames(
+            film(inputs["image_xy"]), inputs["lengths"], cam, _optional(inputs, "signs"),
+            film(_optional(inputs, "aux_xy")), _optional(inputs, "aux_lengths"), _optional(inputs, "start"),
+            tol_z=params["tol_z"], beta_max=params["beta_max"], beta_sep=params["beta_sep"])
+        context.progress(1, 1, "done")
+        return {"points": pts, "signs": signs, "tangent_ray": tangent}
+
+
+# ------------------------------------------------------------------------------------------------ error analysis
+
+_ERROR_NAMES = ("Ux", "Uy", "Vx", "Vy", "Fx", "Fy", "Fz", "Gx", "Gz", "T")
+
+
+class MirrorErrorAnalysis(Algorithm):
+    """Sensitivity (Table 3.1), error map (Fig. 3.22), Monte Carlo and mirror-angle sweep (Fig. 3.23)."""
+
+    name = "mirror_error_analysis"
+    version = "1.0.0"
+    description = "mirror-method error analysis on the thesis geometry: sensitivities, Monte Carlo, angle sweep"
+    parameters = ParameterSet(
+        Parameter("mirror_angle", float, float(np.radians(50.0)), unit="rad", bounds=(0.05, 1.55),
+                  help="vertical mirror turned about Y: normal (cos T, 0, sin T)"),
+        Parameter("focal", float, 30.0, unit="mm", bounds=(1.0, None), help="lens focal length (film parallel to Z=0)"),
+        Parameter("radius", float, 100.0, unit="mm", bounds=(0.0, None),
+                  help="sphere of markers about (100, 50, 300) mm when no points are given"),
+        Parameter("n_lat", int, 9, bounds=(3, 90), help="latitude rings of the sphere (incl. poles)"),
+        Parameter("n_lon", int, 16, bounds=(1, 360), help="points per ring"),
+        Parameter("err_film", float, 0.003, unit="mm", bounds=(0.0, None), help="film reading error (Ux Uy Vx Vy)"),
+        Parameter("err_camera", float, 1.0, unit="mm", bounds=(0.0, None), help="error of the camera centre (Fx Fy Fz)"),
+        Parameter("err_mirror_point", float, 1.0, unit="mm", bounds=(0.0, None), help="error of G (Gx Gz)"),
+        Parameter("err_normal", float, 1e-4, unit="rad", bounds=(0.0, None), help="error of the mirror angle (T)"),
+        Parameter("mc_samples", int, 200, bounds=(0, 100000), help="Monte Carlo samples (0: skip)"),
+        Parameter("seed", int, 0, bounds=(0, None), help="Monte Carlo random seed"),
+        Parameter("sweep_min", float, 0.2, unit="rad", bounds=(0.05, 1.55), help="mirror-angle sweep start"),
+        Parameter("sweep_max", float, 1.4, unit="rad", bounds=(0.05, 1.55), help="mirror-angle sweep end"),
+        Parameter("sweep_steps", int, 25, bounds=(0, 1000), help="mirror-angle sweep samples (0: skip)"),
+    )
+    inputs = (Port("points", "(M, 3) markers to analyse (default: the sphere)", "mm", optional=True),)
+    outputs = (Port("points", "(M, 3) analysed markers", "mm"),
+               Port("parameter_names", "(10,) Ux Uy Vx Vy Fx Fy Fz Gx Gz T (order of contributions)"),
+               Port("contributions", "(10, M, 3) dR/da_n * da_n per parameter (eq. 2.30)", "mm"),
+               Port("table", "(10,) mean |contribution| per parameter over the markers (Table 3.1 column b)", "mm"),
+               Port("signed_sum", "(M, 3) sum of contributions (eq. 2.30)", "mm"),
+               Port("abs_sum", "(M, 3) sum of |contributions| (worst case)", "mm"),
+               Port("rss", "(M, 3) root-sum-square of contributions", "mm"),
+               Port("mc_std", "(M, 3) Monte Carlo standard deviation (NaN if skipped)", "mm"),
+               Port("mc_bias", "(M, 3) Monte Carlo mean minus nominal (NaN if skipped)", "mm"),
+               Port("sweep_angles", "(A,) mirror angles of the sweep", "rad"),
+               Port("sweep_error", "(A,) mean total error |c| summed over parameters", "mm"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        scene = MirrorScene.thesis(params["mirror_angle"], params["focal"])
+        pts = _optional(inputs, "points")
+        pts = sphere_points((100.0, 50.0, 300.0), params["radius"], params["n_lat"], params["n_lon"]) \
+            if pts is None else np.atleast_2d(np.asarray(pts, float))
+        e = params
+        errors = {"Ux": e["err_film"], "Uy": e["err_film"], "Vx": e["err_film"], "Vy": e["err_film"],
+                  "Fx": e["err_camera"], "Fy": e["err_camera"], "Fz": e["err_camera"],
+                  "Gx": e["err_mirror_point"], "Gz": e["err_mirror_point"], "T": e["err_normal"]}
+        if min(errors.values()) <= 0:
+            raise InvalidArgument("every error (err_film, err_camera, err_mirror_point, err_normal) must be > 0 "
+                                  "for the central differences of eq. 2.31")
+        steps = params["sweep_steps"]
+        total = 2 + (params["mc_samples"] > 0) + steps
+        context.progress(0, total, "sensitivities")
+        sens = mirror_point_sensitivity(scene, pts, errors)
+        mag = np.linalg.norm(sens.contributions, axis=-1)  # (10, M)
+        mc_std = mc_bias = np.full(pts.shape, np.nan)
+        done = 1
+        if params["mc_samples"] > 0:
+            context.progress(done, total, "Monte Carlo")
+            U, V = scene.image_points(pts)
+            mc = monte_carlo(lambda p: mirror_reconstruct(scene, U, V, p), {k: 0.0 for k in errors}, errors,
+                             n=params["mc_samples"], rng=params["seed"])
+            mc_std, mc_bias = mc.std, mc.bias
+            done += 1
+        angles = np.linspace(params["sweep_min"], params["sweep_max"], steps)
+        sweep = np.empty(steps)
+        for i, T in enumerate(angles):  # one vectorised sensitivity per angle
+            context.progress(done + i, total, "mirror-angle sweep")
+            sweep[i] = mirror_angle_sweep(scene, pts, [T], errors)[0]
+        context.progress(total, total, "done")
+        return {"points": pts, "parameter_names": np.array(_ERROR_NAMES, dtype="S"),
+                "contributions": sens.contributions, "table": mag.mean(axis=1), "signed_sum": sens.signed_sum,
+                "abs_sum": sens.abs_sum, "rss": sens.rss, "mc_std": mc_std, "mc_bias": mc_bias,
+                "sweep_angles": angles, "sweep_error": sweep}
+
+
+ALGORITHMS = [CalibratePlane, CalibratePinhole, MirrorNormalAlgorithm, ReconstructParallel, ReconstructCentral,
+              ReconstructMirror, MirrorErrorAnalysis]
+
+
+# ------------------------------------------------------------------------------------------------ storing cameras
+
+
+def parse_pattern(text: str) -> tuple[int, int]:
+    """``"10x7"`` -> (10, 7) inner corners (columns x rows).
+
+    Examples
+    --------
+    >>> parse_pattern("10x7")
+    (10, 7)
+    """
+    cols, sep, rows = text.lower().partition("x")
+    try:
+        out = (int(cols), int(rows))
+    except ValueError:
+        raise InvalidArgument(f"pattern {text!r} is not COLSxROWS (inner corners), e.g. 10x7") from None
+    if not sep or min(out) < 2:
+        raise InvalidArgument(f"pattern {text!r} is not COLSxROWS with at least 2x2 inner corners, e.g. 10x7")
+    return out
+
+
+def image_files(spec: str | Path) -> list[Path]:
+    """Image files of a folder (``*.jpg *.jpeg *.png *.tif *.tiff *.bmp``, sorted) or of a glob pattern."""
+    p = Path(spec)
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp"))
+    else:
+        files = sorted(Path(f) for f in glob.glob(str(spec)))
+    if not files:
+        raise CalibrationError(f"no image files in {spec}; give a folder of chessboard photos or a glob such as 'cal/*.png'")
+    return files
+
+
+def chessboard_inputs(images: str | Path, pattern: str, square: float, detector: str = "classic"
+                      ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Detect a chessboard in image files: the ``calibrate_pinhole`` inputs and what was found.
+
+    Returns the inputs ``object_points`` (views, M, 3) mm, ``image_points`` (views, M, 2) px,
+    ``image_size`` (2,) px and a dict ``{"found": [...], "missing": [...]}`` of file names.
+    """
+    det = find_chessboard_corners(image_files(images), parse_pattern(pattern), square, method=detector)
+    return ({"object_points": np.stack(det.object_points).astype(float),
+             "image_points": np.stack(det.image_points).astype(float),
+             "image_size": np.asarray(det.image_size, dtype=np.int64)},
+            {"found": [Path(f).name for f in det.found], "missing": [Path(f).name for f in det.missing]})
+
+
+def store_calibration(session: "Session", camera: str, ref: "ResultRef", extra: Mapping[str, Any] | None = None,
+                      attrs: Mapping[str, Any] | None = None) -> str:
+    """Write the camera of a successful calibration run to ``/calibration/<camera>``.
+
+    The group holds every output of the run (camera arrays under the input names of the
+    reconstruction algorithms) plus ``extra`` arrays; its attributes name the ``result`` path, the
+    ``algorithm``, the camera ``model`` and the run's ``parameters``.
+
+    Raises
+    ------
+    CalibrationError
+        The run failed (its error is repeated); nothing is written.
+    """
+    if ref.status != "ok":
+        raise CalibrationError(f"{ref.path} failed: {ref.error}")
+    result = session.result(ref)
+    arrays = {**result.outputs, **(extra or {})}
+    path = f"calibration/{camera}"
+    session.write_group(path, arrays, {"result": ref.path, "algorithm": ref.algorithm, "model": camera_kind(arrays),
+                                       "parameters": result.attrs.get("parameters", {}), **(attrs or {})})
+    return "/" + path
+
+
+def require_new_camera(session: "Session", camera: str) -> None:
+    """Refuse early if ``/calibration/<camera>`` exists (groups are never overwritten)."""
+    if not camera or "/" in camera:
+        raise InvalidArgument(f"camera name {camera!r} must be a non-empty name without '/', e.g. 'cam'")
+    if f"calibration/{camera}" in session.file:
+        raise SessionError(f"/calibration/{camera} already exists in {session.path}; choose another camera name")
+
+
+def calibration_inputs(session: "Session", group: str, algorithm: type[Algorithm]) -> dict[str, str]:
+    """Dataset paths of a calibration group for the camera inputs ``algorithm`` declares."""
+    key = group.strip("/")
+    if key not in session.file:
+        raise SessionError(f"no calibration group {group} in {session.path}; run a calibrate step first "
+                           "(`mirrorlab session tree FILE` lists the groups)")
+    declared = {p.name for p in algorithm.inputs}
+    return {name: f"/{key}/{name}" for name in session.file[key] if name in declared and name in CAMERA_KEYS}
+
+
+# ------------------------------------------------------------------------------------------------ recipe steps
+
+
+def _nested(table: Mapping[str, Any], key: str, where: str, file: str | None, problems: list[Problem]) -> dict:
+    value = table.get(key, {})
+    if not isinstance(value, Mapping):
+        problems.append(Problem(f"{where}.{key}", "must be a table", file))
+        return {}
+    return dict(value)
+
+
+def _validate_algorithm_tables(algorithm: type[Algorithm], table: Mapping[str, Any], where: str, file: str | None,
+                               provided: set[str]) -> tuple[dict, dict, list[Problem]]:
+    problems: list[Problem] = []
+    inputs = _nested(table, "inputs", where, file, problems)
+    declared = {p.name for p in algorithm.inputs}
+    for name, path in inputs.items():
+        if name not in declared:
+            problems.append(Problem(f"{where}.inputs.{name}", f"{algorithm.name} takes no input {name!r}; it takes: "
+                                    f"{', '.join(sorted(declared))}", file))
+        elif not isinstance(path, str) or not path.startswith("/"):
+            problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
+                                    "'/truth/markers/real_xy'", file))
+    for p in algorithm.inputs:
+        if not p.optional and p.name not in inputs and p.name not in provided:
+            problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "
+                                    f"({p.description})", file))
+    params = _nested(table, "parameters", where, file, problems)
+    typed, more = algorithm.parameters.problems(params, f"{where}.parameters", file)
+    return inputs, typed, problems + more
+
+
+def _lookup(registry: "Registry", name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:
+    try:
+        return registry.algorithm(name), []
+    except PluginError as exc:
+        return None, [Problem(key, str(exc), file)]
+
+
+class Calibrate(Step):
+    """``action = "calibrate"``: calibrate a camera and store it under ``/calibration/<camera>``.
+
+    Either ``inputs`` (dataset paths of the session) for ``calibrate_plane`` / ``calibrate_pinhole``,
+    or ``images`` (folder or glob of chessboard photos) with ``pattern`` and ``square`` for
+    ``calibrate_pinhole``. ``parameters`` go to the algorithm.
+    """
+
+    name = "calibrate"
+    version = "1.0.0"
+    description = "calibrate a camera (plane map or pinhole) and store it under /calibration/<camera>"
+    parameters = ParameterSet(
+        Parameter("camera", str, help="camera name: the result goes to /calibration/<camera>"),
+        Parameter("algorithm", str, "calibrate_plane", choices=("calibrate_plane", "calibrate_pinhole"),
+                  help="calibration algorithm"),
+        Parameter("images", str, "", help="folder or glob of chessboard photos (calibrate_pinhole)"),
+        Parameter("pattern", str, "", help="chessboard inner corners COLSxROWS, e.g. 10x7"),
+        Parameter("square", float, 1.0, unit="mm", bounds=(0.0, None), help="chessboard square side"),
+        Parameter("detector", str, "classic", choices=("classic", "sb"), help="corner detector"),
+    )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
+        values, problems = cls.parameters.problems(scalar, where, file)
+        if problems:
+            return values, problems
+        algorithm, problems = _lookup(registry, values["algorithm"], f"{where}.algorithm", file)
+        if algorithm is None:
+            return values, problems
+        provided: set[str] = set()
+        if values["images"]:
+            if values["algorithm"] != "calibrate_pinhole":
+                problems.append(Problem(f"{where}.images", "images need algorithm = \"calibrate_pinhole\"", file))
+            try:
+                parse_pattern(values["pattern"])
+            except InvalidArgument as exc:
+                problems.append(Problem(f"{where}.pattern", str(exc), file))
+            provided = {"object_points", "image_points", "image_size"}
+        inputs, typed, more = _validate_algorithm_tables(algorithm, table, where, file, provided)
+        values.update(inputs=inputs, parameters=typed)
+        return values, problems + more
+
+    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+        require_new_camera(session, values["camera"])
+        inputs: dict[str, Any] = dict(values["inputs"])
+        extra: dict[str, Any] = {}
+        attrs: dict[str, Any] = {}
+        if values["images"]:
+            session.events.progress(self.name, 0, None, "detecting chessboard corners")
+            detected, found = chessboard_inputs(values["images"], values["pattern"], values["square"],
+                                                values["detector"])
+            inputs.update(detected)
+            extra = {"image_points": detected["image_points"], "object_points": detected["object_points"]}
+            attrs = {"images": str(values["images"]), "pattern": values["pattern"], "square_mm": values["square"],
+                     **found}
+        ref = session.run(values["algorithm"], inputs, values["parameters"])
+        store_calibration(session, values["camera"], ref, extra, attrs)
+
+
+class Reconstruct(Step):
+    """``action = "reconstruct"``: a reconstruction algorithm with the camera of ``/calibration/<camera>``."""
+
+    name = "reconstruct"
+    version = "1.0.0"
+    description = "reconstruct 3-D markers (parallel, central or mirror) from 2-D marker data of the session"
+    parameters = ParameterSet(
+        Parameter("method", str, "mirror", choices=("parallel", "central", "mirror"), help="reconstruction method"),
+        Parameter("calibration", str, "", help="calibration group giving the camera, e.g. /calibration/cam"),
+    )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
+        values, problems = cls.parameters.problems(scalar, where, file)
+        if problems:
+            return values, problems
+        algorithm, problems = _lookup(registry, f"reconstruct_{values['method']}", f"{where}.method", file)
+        if algorithm is None:
+            return values, problems
+        if values["calibration"] and not values["calibration"].startswith("/"):
+            problems.append(Problem(f"{where}.calibration", "must be a group path such as '/calibration/cam'", file))
+        inputs, typed, more = _validate_algorithm_tables(algorithm, table, where, file, set())
+        values.update(inputs=inputs, parameters=typed)
+        return values, problems + more
+
+    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+        name = f"reconstruct_{values['method']}"
+        inputs = dict(values["inputs"])
+        if values["calibration"]:
+            cls = session.registry.algorithm(name)
+            inputs = {**calibration_inputs(session, values["calibration"], cls), **inputs}
+        ref = session.run(name, inputs, values["parameters"])
+        if ref.status != "ok":
+            raise PhotogrammetryError(f"{ref.path} failed: {ref.error}")
+
+
+STEPS = [Calibrate, Reconstruct]
+
+
+def add_cli_commands(subparsers: Any) -> None:
+    """``mirrorlab calibrate`` and ``mirrorlab reconstruct`` (see :mod:`.cli`)."""
+    from . import cli
+
+    cli.add(subparsers)
