@@ -28,7 +28,7 @@ import socket
 import sys
 import time
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -108,6 +108,7 @@ class Session:
         self.instruments: dict[str, Instrument] = {}
         self._simulators: dict[str, SimulatorServer] = {}
         self._recorder: Recorder | None = None
+        self._recording: list[str] = []
         self._closed = False
         self._created = False
         for message in registry.notify("mirrorlab_session_opened", session=self):
@@ -258,13 +259,16 @@ class Session:
         cls = self.registry.instrument(plugin)
         sim_options = SIMULATOR_OPTIONS.validate(dict(simulator or {}), where=f"instruments.{label}.simulator")
         instrument: Instrument = cls(label, port, settings, timeout, report=self._reporter(label))
-        if simulate:
+        # Only a device on a port has a simulator to serve; other sources (files, a virtual
+        # scene) are their own simulation.
+        served = simulate and cls.needs_port(instrument.settings)
+        if served:
             server = self._start_simulator(cls, instrument.settings, sim_options, label)
             instrument.port = server.url
         try:
             instrument.connect()
             instrument.identify()
-            if simulate and isinstance(instrument, SerialInstrument) and getattr(cls, "simulator", None):
+            if served and isinstance(instrument, SerialInstrument):
                 instrument.simulate_query(f"SIM:SEED {sim_options['seed']}")
                 instrument.simulate_query(f"SIM:CLOCK {sim_options['clock']}")
             instrument.configure()
@@ -282,7 +286,7 @@ class Session:
         schema.set_json(g, "settings", to_jsonable(instrument.settings))
         schema.set_json(g, "identity", meta["identity"])
         g.attrs["firmware"] = meta["identity"].get("firmware", "")
-        if simulate:
+        if served:
             schema.set_json(g, "simulator", sim_options)
         self.events.emit("info", label, "instrument_added",
                          f"{plugin} {label!r} ready ({'simulated' if simulate else instrument.port})")
@@ -333,16 +337,24 @@ class Session:
     def recording(self) -> bool:
         return self._recorder is not None
 
-    def start_recording(self) -> None:
-        """Declare every stream in the file, switch to SWMR and start all instruments."""
+    def start_recording(self, instruments: Sequence[str] | None = None) -> None:
+        """Declare the streams in the file, switch to SWMR and start the instruments.
+
+        ``instruments`` names the labels to record (default: all of them).
+        """
         self._require_writable("record")
         if self._recorder is not None:
             raise SessionError("already recording")
         if not self.instruments:
             raise SessionError("no instruments to record; add one with add_instrument()")
+        labels = list(self.instruments) if instruments is None else list(instruments)
+        unknown = [label for label in labels if label not in self.instruments]
+        if unknown or not labels:
+            raise SessionError(f"cannot record {', '.join(unknown) or 'nothing'}; "
+                               f"instruments of this session: {', '.join(self.instruments)}")
         emitters = {}
-        for label, inst in self.instruments.items():
-            specs = inst.streams()
+        for label in labels:
+            specs = self.instruments[label].streams()
             group = self.file["instruments"][label]
             for spec in specs:
                 schema.create_stream(group, spec)
@@ -354,10 +366,10 @@ class Session:
         self.router.recording = True
         self._recorder = Recorder(self.file, self.router, self.events)
         self._recorder.start()
-        self.events.emit("info", "session", "recording_started", "recording started",
-                         instruments=list(self.instruments))
-        for inst in self.instruments.values():
-            inst.start(emitters[inst.label])
+        self._recording = labels
+        self.events.emit("info", "session", "recording_started", "recording started", instruments=labels)
+        for label in labels:
+            self.instruments[label].start(emitters[label])
         for message in self.registry.notify("mirrorlab_recording_started", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
 
@@ -365,8 +377,8 @@ class Session:
         """Stop instruments, write what is queued, leave SWMR; returns per-stream statistics."""
         if self._recorder is None:
             raise SessionError("not recording")
-        for inst in self.instruments.values():
-            inst.stop()
+        for label in self._recording:
+            self.instruments[label].stop()
         self.router.recording = False
         recorder, self._recorder = self._recorder, None
         try:
@@ -396,20 +408,35 @@ class Session:
             self.events.emit("warning", "session", "plugin_error", message)
         return stats
 
-    def record(self, seconds: float) -> dict[str, dict[str, int]]:
-        """Record for ``seconds`` (progress events every 0.1 s), then stop."""
-        self.start_recording()
+    def record(self, seconds: float | None = None,
+               instruments: Sequence[str] | None = None) -> dict[str, dict[str, int]]:
+        """Record, then stop; returns per-stream statistics (see :meth:`stop_recording`).
+
+        Parameters
+        ----------
+        seconds
+            Duration in s; ``None`` records until every recorded instrument has finished (a finite
+            source such as a folder of frames or a virtual scene) or failed.
+        instruments
+            Labels to record (default: all).
+        """
+        self.start_recording(instruments)
+        recorded = [self.instruments[label] for label in self._recording]
         try:
             start = time.monotonic()
-            while (elapsed := time.monotonic() - start) < seconds:
+            while seconds is None or (time.monotonic() - start) < seconds:
+                elapsed = time.monotonic() - start
                 self.events.progress("acquire", round(elapsed, 1), seconds, "recording")
-                time.sleep(min(0.1, max(0.0, seconds - elapsed)))
+                time.sleep(0.1 if seconds is None else min(0.1, max(0.0, seconds - elapsed)))
                 if self._recorder is not None and self._recorder.error is not None:
                     break
-                if all(i.failed is not None for i in self.instruments.values()):
+                if all(i.failed is not None for i in recorded):
                     self.events.emit("error", "session", "all_failed", "every instrument failed; stopping")
                     break
-            self.events.progress("acquire", seconds, seconds, "recording")
+                if not any(i.running for i in recorded):
+                    break  # every source has ended
+            done = time.monotonic() - start
+            self.events.progress("acquire", done, done if seconds is None else seconds, "recording")
         finally:
             stats = self.stop_recording()
         return stats
@@ -460,10 +487,9 @@ class Session:
         arrays, sources = {}, {}
         for name, value in inputs.items():
             if isinstance(value, str):
-                if value not in self.file:
-                    raise ValidationError([Problem(f"inputs.{name}", f"no dataset {value!r} in {self.path}")])
-                arrays[name] = self.file[value][()]
-                sources[name] = value
+                path = self.resolve(value, f"inputs.{name}")
+                arrays[name] = self.file[path][()]
+                sources[name] = path
             else:
                 arrays[name] = np.asarray(value)
                 sources[name] = "<array>"
@@ -497,6 +523,25 @@ class Session:
         for message in self.registry.notify("mirrorlab_result_written", session=self, result=ref):
             self.events.emit("warning", "session", "plugin_error", message)
         return ref
+
+    def resolve(self, reference: str, key: str = "dataset") -> str:
+        """The dataset path a reference names.
+
+        ``/absolute/path`` names itself; ``@algorithm/output`` names ``output`` of the latest
+        successful run of ``algorithm`` in this session (how recipe steps chain results).
+        """
+        if reference.startswith("@"):
+            algorithm, _, output = reference[1:].partition("/")
+            runs = [r for r in self.results(algorithm) if r.status == "ok"]
+            if not runs or not output:
+                raise ValidationError([Problem(key, f"{reference!r}: no successful run of {algorithm!r} "
+                                               "in this session yet (write @algorithm/output after its step)")])
+            path = f"{runs[-1].path}/{output}"
+        else:
+            path = reference
+        if path.strip("/") not in self.file or not isinstance(self.file[path], h5py.Dataset):
+            raise ValidationError([Problem(key, f"no dataset {path!r} in {self.path}")])
+        return path
 
     def results(self, algorithm: str | None = None) -> list[ResultRef]:
         """Stored runs, oldest first (of one algorithm, or all)."""

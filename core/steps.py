@@ -94,9 +94,9 @@ class Run(Step):
             if name not in declared:
                 problems.append(Problem(f"{where}.inputs.{name}", f"{algorithm.name} takes no input {name!r}; "
                                         f"it takes: {', '.join(sorted(declared)) or 'none'}", file))
-            elif not isinstance(path, str) or not path.startswith("/"):
-                problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path "
-                                        "such as '/instruments/cam/frames/data'", file))
+            elif not isinstance(path, str) or not path.startswith(("/", "@")):
+                problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
+                                        "'/instruments/cam/frames/data' or a result '@algorithm/output'", file))
         for p in algorithm.inputs:
             if not p.optional and p.name not in inputs:
                 problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "

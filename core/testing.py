@@ -152,11 +152,16 @@ class InstrumentConformance:
 
     # -- streaming ---------------------------------------------------------------------------------
     def _acquire(self, inst: SerialInstrument, seconds: float) -> tuple[StreamRouter, Any]:
+        """Acquire for ``seconds``, then on until every stream has emitted (a busy machine is slow)."""
         router, clock = StreamRouter(), SessionClock()
         specs = {s.name: s for s in inst.streams()}
         subs = {name: router.subscribe("dut", name, maxlen=100_000) for name in specs}
         inst.start(Emitter("dut", router, clock, specs))
         time.sleep(seconds)
+        deadline = time.monotonic() + 10 + 20 * seconds
+        while (any(("dut", name) not in router.stats for name in specs) and inst.failed is None
+               and time.monotonic() < deadline):
+            time.sleep(0.05)
         inst.stop()
         return router, subs
 
@@ -169,7 +174,7 @@ class InstrumentConformance:
         assert inst.failed is None, inst.failed
         for name, spec in specs.items():
             blocks = subs[name].drain()
-            assert blocks, f"stream {name!r} emitted nothing in {self.acquire_seconds} s"
+            assert blocks, f"stream {name!r} emitted nothing"
             times = np.concatenate([b.times for b in blocks])
             assert np.all(np.diff(times) >= 0), f"stream {name!r} times go backwards"
             values = np.concatenate([b.values.reshape(-1, *spec.shape) for b in blocks])
@@ -189,10 +194,15 @@ class InstrumentConformance:
         deadline = time.monotonic() + 10
         while "reconnected" not in events and time.monotonic() < deadline and inst.failed is None:
             time.sleep(0.05)
-        before = sum(st.samples for st in router.stats.values())
-        time.sleep(self.acquire_seconds / 2)
+        def samples() -> int:
+            return sum(st.samples for st in router.stats.values())
+
+        before = samples()
+        deadline = time.monotonic() + 10 + 20 * self.acquire_seconds  # generous: CI machines are busy
+        while samples() == before and time.monotonic() < deadline and inst.failed is None:
+            time.sleep(0.05)
+        after = samples()
         inst.stop()
-        after = sum(st.samples for st in router.stats.values())
         assert "connection_lost" in events and "reconnected" in events, events
         assert inst.failed is None
         assert after > before, "no samples after the reconnect"

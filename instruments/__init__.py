@@ -1,8 +1,22 @@
-"""Built-in instrument plugins; each sub-package is one instrument with its simulator."""
+"""Built-in instrument plugins; each sub-package is one instrument with its simulator.
+
+``virtual_lab`` is not an instrument: it is the simulated experiment (scenes, camera, mirrors,
+renderer, ground truth) that the simulators film; its lifecycle hook stores the truth of every
+recording made on it under ``/truth/<instrument>``.
+"""
 
 from __future__ import annotations
 
+from typing import Any
+
 from mirrorlab.core.hookspecs import hookimpl
+
+
+@hookimpl
+def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> None:
+    from .virtual_lab.source import record_all_truth  # imported when a recording ends, not at start-up
+
+    record_all_truth(session)
 
 
 @hookimpl
@@ -10,3 +24,6 @@ def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
 
     return [FilmScanner]
+
+
+__all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

@@ -1,8 +1,8 @@
 """``FilmScanner``: the film digitiser instrument plugin (spec ``instruments.md`` §1).
 
 With ``source = "fscan"`` it drives an FSCAN device (or its simulator) over the line protocol:
-homing, heading, and scanning ``lines`` lines per frame. With ``folder``, ``video`` or ``camera``
-it reads frames from a :mod:`~mirrorlab.instruments.film_scanner.sources` object instead and
+homing, heading, and scanning ``lines`` lines per frame. With ``folder``, ``video``, ``camera`` or ``virtual``
+(rendered frames of a virtual-lab ``scene``) it reads frames from a :mod:`~mirrorlab.instruments.film_scanner.sources` object instead and
 emits them in the same format, paced at ``frame_rate``. API units: mm and s; the wire speaks
 steps, lines, ms, Hz and DAC counts.
 """
@@ -32,10 +32,13 @@ FEED_S_PER_LINE = STEPS_PER_LINE * STEP_S
 HEAD_ESTIMATE_S = 8.0            # typical heading + recentring time, for the nominal frame rate
 
 Frame = tuple[float, int, np.ndarray]
+#: Scene names of ``mirrorlab.instruments.virtual_lab.SCENE_NAMES`` (a test keeps them equal; not
+#: imported here because the virtual lab imports the film module of this package).
+VIRTUAL_SCENES = ("", "rssr", "four_bar", "box", "upper_limb", "grid")
 
 
 class FilmScanner(SerialInstrument):
-    """Line-scan film digitiser (FSCAN) or a folder / video / camera stand-in.
+    """Line-scan film digitiser (FSCAN) or a folder / video / camera / virtual-lab stand-in.
 
     Streams: ``frames`` (uint8 ``(lines, 512)``, 0/255 when binarised) and ``frame_index`` (int64).
     """
@@ -46,8 +49,8 @@ class FilmScanner(SerialInstrument):
     kind = "FSCAN"
     simulator = FilmScannerModel
     parameters = ParameterSet(
-        Parameter("source", str, "fscan", choices=("fscan", "folder", "video", "camera"),
-                  help="fscan = serial scanner (or simulator); folder/video/camera = frame source"),
+        Parameter("source", str, "fscan", choices=("fscan", "folder", "video", "camera", "virtual"),
+                  help="fscan = serial scanner (or simulator); folder/video/camera/virtual = frame source"),
         Parameter("path", str, "", help="folder of PNG/TIFF/JPEG frames or video file; for fscan "
                                         "simulation the film's frame images (empty = generated film)"),
         Parameter("camera_index", int, 0, bounds=(0, 63), help="OpenCV camera index (source = camera)"),
@@ -59,9 +62,15 @@ class FilmScanner(SerialInstrument):
         Parameter("head_sl2", int, 128, bounds=(0, 255), help="heading threshold for the dark frame edge"),
         Parameter("head_skip", int, 37, bounds=(0, 384), help="lines skipped into the frame after heading"),
         Parameter("frame_rate", float, 10.0, unit="Hz", bounds=(0.01, 1000.0),
-                  help="frame pacing for folder/video/camera sources"),
+                  help="frame pacing of folder/video/camera/virtual sources; shooting rate of a "
+                       "virtual-lab film"),
         Parameter("loop", bool, False, help="restart a folder or video at its end"),
         Parameter("binarise", bool, True, help="binarise folder/video/camera frames at `threshold`"),
+        Parameter("scene", str, "", choices=VIRTUAL_SCENES,
+                  help="virtual-lab scene: the frames of source = virtual, and the film of a simulated "
+                       "fscan (shot at `frame_rate`); empty = none"),
+        Parameter("scene_frames", int, 34, bounds=(1, 100_000),
+                  help="frames of the virtual scene (film length, or frames before the virtual source ends)"),
     )
 
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
@@ -79,7 +88,13 @@ class FilmScanner(SerialInstrument):
     def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> FilmScannerModel:
         """A simulator for these settings: the film is made of ``path``'s images if given, else generated."""
         values = cls.parameters.validate(dict(settings))
-        film = Film.from_images(load_images(values["path"])) if values["path"] else Film.generated()
+        if values["path"]:
+            film = Film.from_images(load_images(values["path"]))
+        elif values["scene"]:
+            from mirrorlab.instruments.virtual_lab.source import virtual_film
+            film = virtual_film(values["scene"], values["frame_rate"], values["scene_frames"])
+        else:
+            film = Film.generated()
         return FilmScannerModel(film, seed=seed)
 
     @property
@@ -92,7 +107,9 @@ class FilmScanner(SerialInstrument):
             super().connect()
         elif self._source is None:
             self._source = open_source(self.settings["source"], self.settings["path"],
-                                       self.settings["camera_index"])
+                                       self.settings["camera_index"], scene=self.settings["scene"],
+                                       frame_rate=self.settings["frame_rate"],
+                                       n_frames=self.settings["scene_frames"])
 
     def identify(self) -> Identity:
         if self.is_serial:

@@ -169,7 +169,7 @@ def make_lab(name: str, image_size: tuple[int, int] | None = None, settings: Ren
       mm, 30 mm lens on 36 x 24 mm, aimed at the calibration plane Z = 0; 1 m x 1 m mirror through
       G = (-291.62, -52.76, 487.56) with normal (cos 50°, 0, sin 50°); the mechanism above the plane
       so that both markers are seen directly and in the mirror over the whole revolution.
-    * ``grid``: the same camera with the 60 mm calibration grid on Z = 0 (35 x 25 discs of 8 mm
+    * ``grid``: the same camera with the 60 mm calibration grid on Z = 0 (41 x 27 discs of 8 mm
       radius filling the frame); the calibration exposure is taken without the mirror, whose back
       would hide part of the grid.
     * ``four_bar``: the planar four-bar (§5.5) on z = 0 seen from 1.2 m, 35 mm cine frame, no mirror.
@@ -197,7 +197,7 @@ def make_lab(name: str, image_size: tuple[int, int] | None = None, settings: Ren
         if name == "rssr":
             scene = RSSRScene(placement=Placement.from_euler((0.0, 0.0, 0.0), (300.0, -100.0, 700.0)))
         else:
-            return VirtualLab(GridScene(calibration_grid(60.0, (35, 25), (-150.0, -60.0))), camera, (), s)
+            return VirtualLab(GridScene(calibration_grid(60.0, (41, 27), (-240.0, -60.0))), camera, (), s)
         return VirtualLab(scene, camera, (mirror,), s)
     if name == "four_bar":
         size = image_size or (1600, 1200)
@@ -213,7 +213,7 @@ def make_lab(name: str, image_size: tuple[int, int] | None = None, settings: Ren
         return VirtualLab(BoxScene(), camera, (mirror,), s)
     if name == "upper_limb":
         size = image_size or (1600, 1200)
-        camera = look_at_camera((400.0, 1300.0, 3000.0), (200.0, 1150.0, 0.0), 25.0, (24.0, 18.0), size,
+        camera = look_at_camera((400.0, 1300.0, 2300.0), (150.0, 1150.0, 0.0), 25.0, (24.0, 18.0), size,
                                 distortion=distortion)
         mirror = Mirror((-500.0, 1150.0, -200.0), (np.cos(np.deg2rad(45.0)), 0.0, np.sin(np.deg2rad(45.0))),
                         1000.0, 1000.0)

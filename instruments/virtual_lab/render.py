@@ -11,7 +11,7 @@ Frame model (grey levels 0-255), in this order:
 1. base = ``background`` x illumination, with clutter (static, drawn once per renderer);
 2. markers: ``value = base (1 - a) + level x illumination x a`` with coverage ``a``;
 3. Gaussian blur of ``blur_sigma`` px (lens / focus);
-4. Gaussian noise of ``noise_sigma`` grey levels, seeded by ``(seed, frame index)``;
+4. Gaussian noise of ``noise_sigma`` grey levels (``cv2.randn``), seeded by ``(seed, frame index)``;
 5. rounded and clipped to uint8.
 """
 
@@ -116,6 +116,8 @@ class Renderer:
         if settings.clutter:
             self._draw_clutter(base, rng)
         self.base = base * self.light
+        self._work: NDArray[np.float32] | None = None
+        self._spare: NDArray[np.float32] | None = None
 
     # -- static layer -------------------------------------------------------------------------------
     def _light_field(self, rng: np.random.Generator) -> NDArray[np.float32]:
@@ -177,10 +179,15 @@ class Renderer:
     def render(self, polygons: Sequence[FloatArray] | FloatArray, levels: NDArray, index: int = 0) -> NDArray[np.uint8]:
         """One frame: markers given as outline polygons (Q, N, 2) px with grey ``levels`` (Q,).
 
-        ``index`` seeds the frame's noise together with ``settings.seed``.
+        ``index`` seeds the frame's noise together with ``settings.seed`` (the same index gives
+        the same frame in any order and thread). Work buffers are reused: use one renderer per thread.
         """
         s = self.settings
-        img = self.base.copy()
+        if self._work is None:
+            self._work = np.empty_like(self.base)
+            self._spare = np.empty_like(self.base)
+        img, spare = self._work, self._spare
+        np.copyto(img, self.base)
         for poly, level in zip(polygons, np.asarray(levels, float)):
             if not np.all(np.isfinite(poly)):
                 continue
@@ -192,10 +199,13 @@ class Renderer:
             target = np.float32(level) * self.light[y0:y0 + a.shape[0], x0:x0 + a.shape[1]]
             roi += a * (target - roi)
         if s.blur_sigma > 0:
-            img = cv2.GaussianBlur(img, (0, 0), s.blur_sigma, borderType=cv2.BORDER_REPLICATE)
+            cv2.GaussianBlur(img, (0, 0), s.blur_sigma, dst=spare, borderType=cv2.BORDER_REPLICATE)
+            img, spare = spare, img
         if s.noise_sigma > 0:
-            rng = np.random.default_rng([s.seed, int(index)])
-            img += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(s.noise_sigma)
-        img += np.float32(0.5)
+            # cv2's generator is thread-local: seeding it right before drawing makes the frame deterministic
+            cv2.setRNGSeed(int(np.random.SeedSequence([s.seed, int(index)]).generate_state(1)[0] & 0x7FFFFFFF))
+            cv2.randn(spare, 0.0, float(s.noise_sigma))
+            cv2.add(img, spare, dst=img)
+        cv2.add(img, 0.5, dst=img)
         np.clip(img, 0.0, 255.0, out=img)
         return img.astype(np.uint8)

@@ -20,7 +20,6 @@ from typing import Any
 
 import h5py
 import numpy as np
-
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
 from mirrorlab.core.cli.options import add_parameter_options, collected
@@ -30,18 +29,25 @@ from mirrorlab.core.errors import Problem, ValidationError
 from mirrorlab.core.events import EventBus
 from mirrorlab.core.params import ParameterSet
 
-from . import figures
 from .errors import KinematicsError, KinematicsIOError
 from .io import MarkerData
 from .plugin import (
+    UPPER_LIMB_OUTPUTS,
     AngularMomentum,
     Derivatives,
     ISBAngles,
     RigidBodyMotionAlgorithm,
-    UPPER_LIMB_OUTPUTS,
     UpperLimbAnglesAlgorithm,
 )
-from .store import export_markers, import_markers, marker_names, marker_time, read_marker_file, read_markers, resolve_label
+from .store import (
+    export_markers,
+    import_markers,
+    marker_names,
+    marker_time,
+    read_marker_file,
+    read_markers,
+    resolve_label,
+)
 
 THESIS_POINTS = ("P0", "P1", "P2", "P3", "P4", "P5")
 ISB_POINTS = ("GH", "EL", "EM", "IJ", "PX", "C7", "T8", "US", "RS")
@@ -177,6 +183,12 @@ def _figure_dir(args: argparse.Namespace) -> Path | None:
     return Path(args.figures) if getattr(args, "figures", None) else None
 
 
+def _figures() -> Any:
+    from . import figures  # matplotlib: imported only when figures are asked for
+
+    return figures
+
+
 # ------------------------------------------------------------------------------------------------
 # commands
 # ------------------------------------------------------------------------------------------------
@@ -221,6 +233,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def cmd_derivatives(args: argparse.Namespace) -> int:
     params = collected(args)
+    method = params.get("method", "smoothing_spline")
     with open_source(Path(args.source), args.dataset, args.format) as src, \
             progress_bar(not args.no_progress) as on_event:
         if src.session is not None:
@@ -246,8 +259,8 @@ def cmd_derivatives(args: argparse.Namespace) -> int:
                          f"{fmt(per[lab]['max_acceleration_m_s2'])} ")
         figs = []
         if (d := _figure_dir(args)) is not None:
-            figs.append(str(figures.plot_derivatives(d / "derivatives.png", src.time, labels, xs, v, a,
-                                                     title=f"{src.path.name}: {params.get('method', 'smoothing_spline')}")))
+            figs.append(str(_figures().plot_derivatives(d / "derivatives.png", src.time, labels, xs, v, a,
+                                                      title=f"{src.path.name}: {method}")))
         lines += [f"figure: {f}" for f in figs]
         return _finish(args, src, {"markers": per, "figures": figs}, lines)
 
@@ -257,7 +270,8 @@ def _read_mot(path: Path, column: str) -> tuple[np.ndarray, np.ndarray]:
     try:
         h = next(i for i, ln in enumerate(lines) if ln.strip().lower().startswith("endheader"))
     except StopIteration:
-        raise ValidationError([Problem("--reference", f"{path} is not an OpenSim .mot/.sto file (no endheader)")]) from None
+        raise ValidationError([Problem("--reference",
+                                       f"{path} is not an OpenSim .mot/.sto file (no endheader)")]) from None
     sep = "\t" if "\t" in lines[h + 1] else ","
     cols = [c.strip() for c in lines[h + 1].split(sep)]
     if column not in cols:
@@ -323,7 +337,7 @@ def cmd_angles(args: argparse.Namespace) -> int:
         figs = []
         if (d_ := _figure_dir(args)) is not None:
             drawn = {k: a for k, a in angles.items() if np.isfinite(a).any()}
-            figs.append(str(figures.plot_angles(d_ / "angles.png", src.time, drawn, reference=reference,
+            figs.append(str(_figures().plot_angles(d_ / "angles.png", src.time, drawn, reference=reference,
                                                 title=f"{src.path.name}: joint angles")))
         lines += [f"figure: {f}" for f in figs]
         result["figures"] = figs
@@ -368,7 +382,7 @@ def cmd_rigid(args: argparse.Namespace) -> int:
             lines.append(f"|H_G| mean {result['H_mean_kg_m2_s']} kg·m²/s, (max-min)/mean {result['H_variation']:.3e}")
         figs = []
         if (d := _figure_dir(args)) is not None:
-            figs.append(str(figures.plot_rigid(d / "rigid.png", src.time, omega, rms=rms, H=H,
+            figs.append(str(_figures().plot_rigid(d / "rigid.png", src.time, omega, rms=rms, H=H,
                                                title=f"{src.path.name}: rigid body {'+'.join(result['markers'][:4])}")))
         lines += [f"figure: {f}" for f in figs]
         result["figures"] = figs

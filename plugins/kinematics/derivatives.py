@@ -20,8 +20,8 @@ from .filters import (
     check_uniform,
     contiguous_runs,
     fit_smoothing_spline,
+    thesis_filter,
 )
-from .filters import thesis_filter
 from .thesis_spline import ParametricSpline
 
 __all__ = ["derivatives", "METHODS"]

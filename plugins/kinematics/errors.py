@@ -7,6 +7,8 @@ concerns and says what to do about it.
 
 from __future__ import annotations
 
+import numpy as np
+
 from mirrorlab.core.errors import AlgorithmError
 
 
@@ -76,3 +78,11 @@ class DegenerateJointGeometry(KinematicsError):
 
 class KinematicsIOError(KinematicsError):
     """A marker file (C3D, TRC, TSV) is malformed or lacks the expected content."""
+
+
+def first_index(mask: np.ndarray) -> tuple[int, ...]:
+    """Index of the first True of ``mask`` as plain ints, for error messages (``()`` for a scalar)."""
+    import numpy as np
+
+    hits = np.argwhere(np.asarray(mask))
+    return tuple(int(i) for i in hits[0]) if len(hits) else ()

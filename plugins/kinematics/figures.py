@@ -62,8 +62,8 @@ def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequenc
     ax = fig.subplots(3, 1, sharex=True)
     shown = list(range(min(len(labels), MAX_TRACES)))
     for m in shown:
-        for c, ls in zip(range(3), ("-", "--", ":")):
-            ax[0].plot(tt, xs[:, m, c], ls, lw=0.8, color=f"C{m % 10}", label=f"{labels[m]} {'xyz'[c]}" if c == 0 else None)
+        for c, ls in enumerate(("-", "--", ":")):
+            ax[0].plot(tt, xs[:, m, c], ls, lw=0.8, color=f"C{m % 10}", label=labels[m] if c == 0 else None)
         ax[1].plot(tt, _norm(v[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
         ax[2].plot(tt, _norm(a[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
     ax[0].set_ylabel("position (mm)\nx solid, y dashed, z dotted")
@@ -97,7 +97,7 @@ def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str,
     rows = int(np.ceil(len(names) / cols)) or 1
     fig = Figure(figsize=(5.0 * cols + 2, 1.9 * rows + 1), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, sharex=True, squeeze=False)).ravel()
-    for axis, name in zip(axes, names):
+    for axis, name in zip(axes[:len(names)], names, strict=True):
         y = np.degrees(np.asarray(angles[name], float))
         if y.ndim == 1:
             axis.plot(tt, y, lw=0.9, label=name)

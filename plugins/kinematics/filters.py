@@ -22,7 +22,6 @@ from collections.abc import Callable, Iterator
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import BSpline, CubicSpline, make_smoothing_spline
-from scipy.signal import butter, sosfiltfilt
 
 from .errors import GapTooLong, InsufficientSamples, NonMonotonicTime, NonUniformSampling
 
@@ -347,6 +346,8 @@ def thesis_filter_response(sigma: ArrayLike) -> FloatArray:
 def _butter_run(t: FloatArray, x: FloatArray, sos: FloatArray) -> FloatArray:
     n = x.shape[0]
     default = 3 * (2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum())))
+    from scipy.signal import sosfiltfilt  # scipy.signal costs ~1 s to import: only when used
+
     return sosfiltfilt(sos, x, axis=0, padlen=min(default, n - 1))
 
 
@@ -415,14 +416,14 @@ def butterworth(
             if not np.isfinite(f):
                 out[:, c] = np.nan
                 continue
-            sos = butter(order, f, fs=fs, output="sos")
+            sos = _butter_sos(order, f, fs=fs, output="sos")
             out[:, c] = _apply_runs(tt, x2[:, c], lambda tr, xr: _butter_run(tr, xr, sos), 3)
         return out.reshape(xx.shape)
     if not 0 < cutoff < fs / 2:
         raise InsufficientSamples(
             f"cutoff {cutoff} Hz must lie between 0 and the Nyquist frequency {fs / 2:.6g} Hz"
         )
-    sos = butter(order, cutoff, fs=fs, output="sos")
+    sos = _butter_sos(order, cutoff, fs=fs, output="sos")
     return _apply_runs(tt, xx, lambda tr, xr: _butter_run(tr, xr, sos), 3)
 
 
@@ -481,7 +482,7 @@ def residual_cutoff(
     x2 = xx.reshape(xx.shape[0], -1)
     res = np.empty((n_freq, x2.shape[1]))
     for i, f in enumerate(freqs):
-        sos = butter(order, f, fs=fs, output="sos")
+        sos = _butter_sos(order, f, fs=fs, output="sos")
         y = _apply_runs(tt, x2, lambda tr, xr: _butter_run(tr, xr, sos), 3)
         res[i] = np.sqrt(np.nanmean((x2 - y) ** 2, axis=0))
     i0 = int(round(noise_band[0] * (n_freq - 1)))
@@ -549,3 +550,10 @@ def smoothing_spline(
     """
     tt, xx = _prepare(t, x, max_gap, max_gap_s)
     return _apply_runs(tt, xx, lambda tr, xr: fit_smoothing_spline(tr, xr, lam)(tr), 5)
+
+
+def _butter_sos(order: int, cutoff: float, fs: float, output: str = "sos") -> np.ndarray:
+    """``scipy.signal.butter`` imported on first use (scipy.signal costs ~1 s to import)."""
+    from scipy.signal import butter
+
+    return butter(order, cutoff, fs=fs, output=output)

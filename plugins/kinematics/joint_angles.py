@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .errors import DegenerateJointGeometry
+from .errors import DegenerateJointGeometry, first_index
 
 __all__ = [
     "UpperLimbAngles",
@@ -55,7 +55,7 @@ def _unit(v: FloatArray, what: str, ref: FloatArray | None, on_degenerate: str) 
         bad = n == 0
     if np.any(bad):
         if on_degenerate == "raise":
-            k = np.unravel_index(int(np.flatnonzero(np.ravel(bad))[0]), bad.shape) if bad.ndim else ()
+            k = first_index(bad)
             raise DegenerateJointGeometry(
                 f"{what} at frame {k}; the angle is undefined in this posture - drop the frame or "
                 "pass on_degenerate='nan'"

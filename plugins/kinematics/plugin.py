@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
 from mirrorlab.core.errors import Problem
 from mirrorlab.core.steps import Step
@@ -168,7 +167,7 @@ def chunked(fn: Callable[[np.ndarray], tuple[np.ndarray, ...]], values: np.ndarr
         res = fn(flat[:, sl])
         if outs is None:
             outs = [np.full((r.shape[0], flat.shape[1]), np.nan) for r in res]
-        for o, r in zip(outs, res):
+        for o, r in zip(outs, res, strict=True):
             o[:, sl] = r.reshape(r.shape[0], -1)
     context.progress(len(chunks), len(chunks), "done")
     assert outs is not None
@@ -284,6 +283,8 @@ INERTIA_PARAMETERS = (
     Parameter("box_x", float, 0.0, unit="mm", bounds=(0.0, None), help="uniform box edge along body x"),
     Parameter("box_y", float, 0.0, unit="mm", bounds=(0.0, None), help="uniform box edge along body y"),
     Parameter("box_z", float, 0.0, unit="mm", bounds=(0.0, None), help="uniform box edge along body z"),
+    Parameter("trim", int, 0, bounds=(0, None),
+              help="frames left out at each end when computing H_variation (spline end effects)"),
 )
 
 
@@ -318,7 +319,8 @@ def inertia_tensor(params: Mapping[str, Any], given: np.ndarray | None = None) -
             raise KinematicsParameterError("no inertia given: set Ixx, Iyy, Izz (kg·m²), or mass and box_x/y/z, "
                                            "or pass an 'inertia' input")
     if I.shape != (3, 3) or not np.allclose(I, I.T) or np.any(np.linalg.eigvalsh(0.5 * (I + I.T)) <= 0):
-        raise KinematicsParameterError(f"{source} must be a symmetric positive-definite 3x3 tensor (kg·m²), got {I.tolist()}")
+        raise KinematicsParameterError(f"{source} must be a symmetric positive-definite 3x3 tensor (kg·m²), "
+                                       f"got {I.tolist()}")
     return I
 
 
@@ -339,7 +341,7 @@ class AngularMomentum(Algorithm):
                    "kg·m²", optional=True))
     outputs = (Port("H", "(T, 3) angular momentum about G, world frame", "kg·m²/s"),
                Port("H_norm", "(T,) |H_G|", "kg·m²/s"),
-               Port("H_variation", "(max - min) / mean of |H_G| over the finite frames"),
+               Port("H_variation", "(max - min) / mean of |H_G| over the finite frames (minus trim at each end)"),
                Port("omega", "(T, 3) angular velocity, world frame", "rad/s"),
                Port("R", "(T, 3, 3) body-to-world rotation"),
                Port("inertia", "(3, 3) body-frame inertia used", "kg·m²"))
@@ -364,7 +366,8 @@ class AngularMomentum(Algorithm):
         context.progress(1, 2, "angular momentum")
         H = angular_momentum(np.swapaxes(R, -1, -2), I, omega)
         n = np.linalg.norm(H, axis=-1)
-        fin = n[np.isfinite(n)]
+        inner = n[params["trim"]:n.size - params["trim"]]
+        fin = inner[np.isfinite(inner)]
         variation = float(np.ptp(fin) / fin.mean()) if fin.size and fin.mean() > 0 else float("nan")
         context.progress(2, 2, "done")
         return {"H": H, "H_norm": n, "H_variation": variation, "omega": omega, "R": R, "inertia": I}
@@ -560,17 +563,18 @@ class ImportMarkers(Step):
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         values, problems = cls.parameters.problems(table, where, file)
         if not problems and not values["file"].is_absolute() and file:
             values["file"] = Path(file).resolve().parent / values["file"]  # relative to the recipe
         if not problems and not Path(values["file"]).is_file():
             problems.append(Problem(f"{where}.file", f"no such marker file {str(values['file'])!r}", file))
-        if not problems and values["format"] == "auto" and Path(values["file"]).suffix.lower() not in (".c3d", ".trc", ".tsv"):
+        suffix = Path(values["file"]).suffix.lower() if not problems else ""
+        if not problems and values["format"] == "auto" and suffix not in (".c3d", ".trc", ".tsv"):
             problems.append(Problem(f"{where}.format", "cannot tell the format from the suffix; set format", file))
         return values, problems
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         from .store import import_markers
 
         group, data = import_markers(session, values["file"], values["name"] or None, values["format"])

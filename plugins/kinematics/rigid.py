@@ -20,7 +20,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .derivatives import derivatives
-from .errors import DegenerateAngularVelocity, DegenerateMarkerSet, InsufficientSamples, ParallelBodyVectors
+from .errors import (
+    DegenerateAngularVelocity,
+    DegenerateMarkerSet,
+    InsufficientSamples,
+    ParallelBodyVectors,
+    first_index,
+)
 from .filters import check_time
 
 __all__ = [
@@ -323,7 +329,7 @@ def angular_velocity_two_vectors(
     axb = np.cross(a, b)
     par = np.linalg.norm(axb, axis=-1) < 1e-6 * na * nb
     if np.any(par):
-        k = np.unravel_index(int(np.flatnonzero(np.ravel(par))[0]), par.shape) if par.ndim else ()
+        k = first_index(par)
         raise ParallelBodyVectors(
             f"body vectors a and b are parallel at frame {k}; choose two marker differences "
             "that span a plane"
@@ -343,7 +349,7 @@ def angular_velocity_two_vectors(
         den = np.einsum("...i,...i", b, c1)
         deg = np.abs(den) <= tol * nb * nc1
         if np.any(deg) and on_degenerate == "raise":
-            k = np.unravel_index(int(np.flatnonzero(np.ravel(deg))[0]), deg.shape) if deg.ndim else ()
+            k = first_index(deg)
             raise DegenerateAngularVelocity(
                 f"b . c1 ~ 0 at frame {k}: omega lies in the plane of a and b (or is zero); use "
                 "mode='robust' or other body vectors"

@@ -28,7 +28,6 @@ from typing import Any
 
 import h5py
 import numpy as np
-
 from mirrorlab.core.store import schema
 
 from .errors import KinematicsIOError

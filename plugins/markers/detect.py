@@ -46,29 +46,34 @@ def grey_image(image: ArrayLike, *, polarity: str = "bright", where: str = "imag
         a = a.astype(np.float32)
         if not np.all(np.isfinite(a)):
             raise InvalidImage(f"{where}: the image contains NaN or infinite pixels; replace them first")
-    if polarity == "dark":
-        a = (np.iinfo(a.dtype).max - a) if a.dtype != np.float32 else (a.max() - a)
-    elif polarity != "bright":
+    if polarity not in ("bright", "dark"):
         raise InvalidDetectionParameter(f"polarity must be 'bright' or 'dark', got {polarity!r}")
-    return a
+    return a if polarity == "bright" else inversion_level(a) - a
+
+
+def inversion_level(a: NDArray) -> float:
+    """The constant ``c`` of the inversion ``c - I`` used for dark markers (type maximum, or image maximum)."""
+    return float(np.iinfo(a.dtype).max) if a.dtype != np.float32 else float(a.max())
 
 
 def auto_threshold(image: NDArray) -> float:
     """Otsu's threshold (``cv2.threshold`` with ``THRESH_OTSU``); pixels ``> T`` are markers.
 
-    On a two-level (binary) image it returns the lower level. Float images are scaled to 16 bits
-    for the histogram.
+    On a two-level (binary) image it returns the lower level, on a uniform image its level (no
+    markers). Float images are scaled to 16 bits for the histogram.
 
     Examples
     --------
     >>> auto_threshold(np.array([[0, 255], [255, 0]], np.uint8))
     0.0
     """
+    lo, hi = cv2.minMaxLoc(image)[:2] if image.dtype != np.float32 else (float(image.min()), float(image.max()))
+    if hi <= lo:
+        return float(hi)
+    if image.dtype == np.uint8 and (hi - lo < 2 or not cv2.countNonZero(cv2.inRange(image, lo + 1, hi - 1))):
+        return float(lo)  # two levels (a binary frame): what Otsu returns, without the histogram
     if image.dtype in (np.uint8, np.uint16):
         return float(cv2.threshold(image, 0, 1, cv2.THRESH_BINARY | cv2.THRESH_OTSU)[0])
-    lo, hi = float(image.min()), float(image.max())
-    if hi <= lo:
-        return lo
     scaled = np.rint((image - lo) * (65535.0 / (hi - lo))).astype(np.uint16)
     return lo + (hi - lo) * float(cv2.threshold(scaled, 0, 1, cv2.THRESH_BINARY | cv2.THRESH_OTSU)[0]) / 65535.0
 
@@ -79,7 +84,7 @@ def _binarise(image: NDArray, threshold: float) -> NDArray[np.uint8]:
     return (image > threshold).astype(np.uint8) * np.uint8(255)
 
 
-def _box_properties(image: NDArray, binary: NDArray[np.uint8], boxes: NDArray[np.int64], xy: NDArray):
+def _box_properties(image: NDArray, binary: NDArray[np.uint8], boxes: NDArray[np.int64]):
     """Area, shape and contrast of the pixels inside each thesis box (x0, y0, x1, y1 inclusive)."""
     h, w = binary.shape
     rows = []
@@ -115,8 +120,8 @@ def detect_markers(image: ArrayLike, method: Method = "subpixel", *, threshold: 
     method : ``"subpixel"`` (default, spec §1.2: intensity-weighted centroid of connected components)
         or ``"thesis"`` (spec §1.1: weighted-filter hill climbing on the binarised image, integer
         window positions + 0.5).
-    threshold : grey level ``T``; pixels ``> T`` belong to markers. ``None``: Otsu's threshold (the
-        lower level on a binary frame).
+    threshold : grey level ``T`` of the given image; pixels ``> T`` (``< T`` for dark markers) belong
+        to markers. ``None``: Otsu's threshold (the lower level on a binary frame).
     polarity : ``"bright"`` markers on a dark background, or ``"dark"``.
     min_area, max_area : px², accepted marker areas (pixel counts; ``subpixel`` only).
     max_eccentricity : reject blobs whose second-moment eccentricity exceeds it (``subpixel`` only).
@@ -150,8 +155,8 @@ def detect_markers(image: ArrayLike, method: Method = "subpixel", *, threshold: 
     >>> det = detect_markers(img)
     >>> det.xy.tolist(), det.area.tolist(), det.contrast.tolist()
     ([[35.0, 25.0]], [121.0], [255.0])
-    >>> detect_markers(img, method="thesis").xy.tolist()
-    [[35.5, 25.5]]
+    >>> detect_markers(img, method="thesis").xy.tolist()   # odd width: a plateau, the climb stops early
+    [[34.5, 24.5]]
     """
     if method not in METHODS:
         raise InvalidDetectionParameter(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
@@ -163,19 +168,24 @@ def detect_markers(image: ArrayLike, method: Method = "subpixel", *, threshold: 
                                         f"max_area={max_area} (px²)")
     if not (0.0 <= max_eccentricity <= 1.0):
         raise InvalidDetectionParameter(f"max_eccentricity must lie in [0, 1], got {max_eccentricity}")
-    grey = grey_image(image, polarity=polarity)
-    if threshold is None:
-        threshold = auto_threshold(grey)
-    elif not np.isfinite(threshold):
+    grey = grey_image(image)
+    if threshold is not None and not np.isfinite(threshold):
         raise InvalidDetectionParameter(f"threshold must be a finite grey level, got {threshold}")
-    threshold = float(threshold)
+    if polarity not in ("bright", "dark"):
+        raise InvalidDetectionParameter(f"polarity must be 'bright' or 'dark', got {polarity!r}")
+    if polarity == "dark":
+        level = inversion_level(grey)
+        grey = level - grey
+        threshold = None if threshold is None else level - threshold
+    threshold = auto_threshold(grey) if threshold is None else float(threshold)
     binary = _binarise(grey, threshold)
     if method == "thesis":
         xy, boxes = thesis_centres(binary, weights_h, weights_v)
         if not len(xy):
             return MarkerDetections.empty("thesis", threshold)
-        area, ecc, contrast, cov, axes, angle = _box_properties(grey, binary, boxes, xy)
+        area, ecc, contrast, cov, axes, angle = _box_properties(grey, binary, boxes)
         return MarkerDetections(xy, area, ecc, contrast, cov, axes, angle, "thesis", threshold,
                                 extra={"boxes": boxes})
-    return subpixel_centroids(grey, binary, threshold, min_area=min_area, max_area=max_area, max_eccentricity=max_eccentricity,
+    return subpixel_centroids(grey, binary, threshold, min_area=min_area, max_area=max_area,
+                              max_eccentricity=max_eccentricity,
                               reject_border=reject_border, ellipse=ellipse, labeling=labeling)

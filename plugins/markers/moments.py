@@ -29,12 +29,16 @@ def shape_from_moments(m00: FloatArray, mu20: FloatArray, mu11: FloatArray, mu02
     >>> round(float(e[0]), 4), axes.round(3).tolist(), float(angle[0])
     (0.866, [[4.0, 2.0]], 0.0)
     """
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a, b, c = mu20 / m00, mu11 / m00, mu02 / m00
-        half_tr, diff = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
-        lam1, lam2 = half_tr + diff, np.maximum(half_tr - diff, 0.0)
-        ecc = np.where(lam1 > 0, np.sqrt(np.clip(1.0 - lam2 / lam1, 0.0, 1.0)), 0.0)
-        angle = np.mod(0.5 * np.arctan2(2.0 * b, a - c), np.pi)
-        axes = 2.0 * np.sqrt(np.stack([lam1, lam2], axis=-1))
-        cov = np.stack([np.stack([a, b], -1), np.stack([b, c], -1)], -2) / np.asarray(area, float)[:, None, None]
+    a, b, c = mu20 / m00, mu11 / m00, mu02 / m00
+    half_tr, diff = 0.5 * (a + c), np.hypot(0.5 * (a - c), b)
+    lam1, lam2 = half_tr + diff, np.maximum(half_tr - diff, 0.0)
+    ratio = np.divide(lam2, lam1, out=np.ones_like(lam1), where=lam1 > 0)
+    ecc = np.sqrt(np.clip(1.0 - ratio, 0.0, 1.0))
+    angle = np.mod(0.5 * np.arctan2(2.0 * b, a - c), np.pi)
+    axes = np.empty((len(a), 2))
+    axes[:, 0], axes[:, 1] = 2.0 * np.sqrt(lam1), 2.0 * np.sqrt(lam2)
+    cov = np.empty((len(a), 2, 2))
+    area = np.asarray(area, float)
+    cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1] = a / area, b / area, c / area
+    cov[:, 1, 0] = cov[:, 0, 1]
     return ecc, axes, angle, cov

@@ -67,7 +67,7 @@ class MarkerDetections:
         return int(self.xy.shape[0])
 
     @classmethod
-    def empty(cls, method: str, threshold: float) -> "MarkerDetections":
+    def empty(cls, method: str, threshold: float) -> MarkerDetections:
         """A result with no markers."""
         z = np.zeros(0)
         return cls(np.zeros((0, 2)), z, z, z, np.zeros((0, 2, 2)), np.zeros((0, 2)), z, method, threshold)

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .detect import detect_markers
-from .errors import InvalidImage, MarkerError
+from .errors import InvalidImage
 
 
 @dataclass(frozen=True)
@@ -66,8 +66,6 @@ def detect_stream(frames: Iterable[np.ndarray], *, progress: Callable[[int, int 
             results.append(detect_markers(frame, **options))
         except InvalidImage as exc:
             raise InvalidImage(f"frame {i}: {exc}") from None
-        except MarkerError:
-            raise
         if progress is not None and (i + 1) % 64 == 0:
             progress(i + 1, total)
     if progress is not None:

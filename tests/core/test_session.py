@@ -145,3 +145,35 @@ def test_analysis_keeps_an_aborted_status(tmp_path: Path, registry) -> None:
         assert s.run("acme_drift_rate", {"time": TIME, "values": VALUES}).status == "ok"
     with Session.open(path) as s:
         assert s.status == "aborted" and len(s.results()) == 1
+
+
+def test_record_a_subset_and_until_sources_end(tmp_path: Path, registry) -> None:
+    path = tmp_path / "sub.h5"
+    with Session.create(path, registry=registry) as s:
+        s.add_instrument("a", "acme_thermometer", simulate=True, settings={"rate": 100})
+        s.add_instrument("b", "acme_thermometer", simulate=True, settings={"rate": 100})
+        s.record(0.5, instruments=["a"])
+        with pytest.raises(SessionError, match="cannot record c"):
+            s.start_recording(["c"])
+        # a finite source: 5 virtual-lab frames, recorded until it ends (no duration given)
+        s.add_instrument("cam", "film_scanner", settings={"source": "virtual", "scene": "rssr",
+                                                          "scene_frames": 5, "frame_rate": 50.0})
+        s.record(None, instruments=["cam"])
+    with Session.open(path) as s:
+        assert s.stream("a", "temperature").data.size > 20
+        assert "temperature" not in s.file["instruments/b"]
+        assert s.stream("cam", "frame_index").data.tolist() == [0, 1, 2, 3, 4]
+        assert "truth/cam" in s.file
+
+
+def test_results_chain_through_references(tmp_path: Path, registry) -> None:
+    t = np.linspace(0, 1, 101)
+    with Session.create(tmp_path / "chain.h5", registry=registry) as s:
+        s.write_group("truth/x", {"t": t, "x": t ** 3})
+        with pytest.raises(ValidationError, match="no successful run of 'derivatives'"):
+            s.run("derivatives", {"time": "/truth/x/t", "values": "@derivatives/velocity"})
+        s.run("derivatives", {"time": "/truth/x/t", "values": "/truth/x/x"}, {"method": "smoothing_spline"})
+        ref = s.run("derivatives", {"time": "/truth/x/t", "values": "@derivatives/velocity"})
+        out = s.result(ref)
+    assert out.attrs["inputs"]["values"] == "/results/derivatives/run-0001/velocity"
+    np.testing.assert_allclose(out.outputs["velocity"][20:-20], 6 * t[20:-20], atol=2e-2)

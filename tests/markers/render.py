@@ -36,7 +36,7 @@ def render_markers(shape: tuple[int, int], centers: NDArray, radii: NDArray | fl
     angle = np.broadcast_to(np.asarray(angle_deg, float), (n,))
     canvas = np.zeros((h * ss, w * ss), np.uint8)
     one = 1 << SHIFT
-    for (x, y), r, q, a in zip(centers, radii, ratio, angle):
+    for (x, y), r, q, a in zip(centers, radii, ratio, angle, strict=False):
         cx, cy = (x + 0.5) * ss - 0.5, (y + 0.5) * ss - 0.5
         cv2.ellipse(canvas, (int(round(cx * one)), int(round(cy * one))),
                     (int(round(r * ss * one)), int(round(r * q * ss * one))), float(a), 0.0, 360.0, 255,
@@ -74,6 +74,6 @@ def binary_disc_frame(shape: tuple[int, int], centers: NDArray, radii: NDArray |
     h, w = shape
     yy, xx = np.mgrid[0:h, 0:w]
     out = np.zeros(shape, bool)
-    for (x, y), r in zip(np.atleast_2d(centers), np.broadcast_to(radii, (len(np.atleast_2d(centers)),))):
+    for (x, y), r in zip(np.atleast_2d(centers), np.broadcast_to(radii, (len(np.atleast_2d(centers)),)), strict=False):
         out |= (xx - x) ** 2 + (yy - y) ** 2 <= r * r
     return out.astype(np.uint8) * np.uint8(255)

@@ -1,0 +1,138 @@
+"""The virtual lab as the film scanner's frame source and film, and its truth in the session.
+
+* :class:`VirtualSource`: a :class:`~mirrorlab.instruments.film_scanner.sources.FrameSource` that
+  renders frame ``k`` of a preset lab at scene time ``k / frame_rate`` (``source = "virtual"``).
+* :func:`virtual_film`: the film strip of a preset lab for the FSCAN simulator.
+* :func:`record_truth`: writes the truth of the frames an instrument recorded to
+  ``/truth/<label>/``; :func:`record_all_truth` does it for every virtual-lab film scanner of a
+  session, and ``mirrorlab.instruments`` calls it from the ``mirrorlab_recording_stopped`` hook.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mirrorlab.core.devices.instrument import Identity
+from mirrorlab.core.errors import DeviceDisconnected
+from mirrorlab.instruments.film_scanner.film import TEX_H, TEX_W, Film
+from mirrorlab.instruments.film_scanner.sources import FrameSource
+
+from .lab import SCENE_NAMES, VirtualLab, make_lab
+from .truth import write_truth
+
+__all__ = ["FILM_SIZE", "SOURCE_SIZE", "VirtualSource", "record_all_truth", "record_truth",
+           "scene_lab", "virtual_film"]
+
+#: Render size of the direct source (4:3, resized by the scanner to 512 x 384).
+SOURCE_SIZE = (1024, 768)
+#: Render size of a film frame: the film texture itself (24 mm x 18 mm at 4 x the scan pitch).
+FILM_SIZE = (TEX_W, TEX_H)
+
+
+def scene_lab(scene: str, image_size: tuple[int, int]) -> VirtualLab:
+    """The preset lab for a ``scene`` setting, with a light clean look (dark background)."""
+    if scene not in SCENE_NAMES:
+        raise DeviceDisconnected(f"unknown virtual-lab scene {scene!r}; set `scene` to one of "
+                                 f"{', '.join(SCENE_NAMES)}")
+    return make_lab(scene, image_size=image_size)
+
+
+def virtual_film(scene: str, frame_rate: float, n_frames: int) -> Film:
+    """A film of ``n_frames`` frames of ``scene`` shot at ``frame_rate`` (Hz), frame k at t = k / rate.
+
+    Examples
+    --------
+    >>> film = virtual_film("rssr", 3.0, 2)
+    >>> film.n_frames, len(film.markers)
+    (2, 8)
+    """
+    lab = scene_lab(scene, FILM_SIZE)
+    return lab.film(np.arange(n_frames) / float(frame_rate))
+
+
+class VirtualSource(FrameSource):
+    """Rendered frames of a preset virtual lab: frame ``k`` shows scene time ``k / frame_rate``.
+
+    The source ends after ``n_frames`` (0 = endless) or when a finite scene (the box flight) is over.
+
+    Examples
+    --------
+    >>> src = VirtualSource("rssr", 3.0, 2); src.open()
+    >>> [(i, img.shape) for i, img in iter(src.read, None)]
+    [(0, (768, 1024)), (1, (768, 1024))]
+    """
+
+    kind = "VIRTUAL"
+
+    def __init__(self, scene: str, frame_rate: float, n_frames: int = 0,
+                 image_size: tuple[int, int] = SOURCE_SIZE) -> None:
+        self.scene = scene
+        self.frame_rate = float(frame_rate)
+        self.n_frames = int(n_frames)
+        self.image_size = image_size
+        self.lab: VirtualLab | None = None
+        self._next = 0
+
+    def open(self) -> None:
+        self.lab = scene_lab(self.scene, self.image_size)
+        self._next = 0
+
+    def read(self) -> tuple[int, NDArray[np.uint8]] | None:
+        if self.lab is None:
+            raise DeviceDisconnected("virtual source is not open; connect first")
+        k = self._next
+        t = k / self.frame_rate
+        duration = self.lab.scene.duration
+        if (self.n_frames and k >= self.n_frames) or (duration is not None and t > duration):
+            return None
+        self._next += 1
+        return k, self.lab.render_truth(self.lab.truth([t]), 0, index=k)
+
+    def rewind(self) -> None:
+        self._next = 0
+
+    def close(self) -> None:
+        self.lab = None
+
+    def identity(self) -> Identity:
+        return Identity(self.kind, "mirrorlab", "virtual_lab", self.scene, f"{self.frame_rate:g} Hz")
+
+
+def record_truth(session: Any, label: str) -> str | None:
+    """Write the ground truth of the frames instrument ``label`` recorded to ``/truth/<label>/``.
+
+    Applies to a ``film_scanner`` with ``source = "virtual"``, or a simulated ``fscan`` whose film
+    is a virtual-lab scene. Frame ``k`` (the ``frame_index`` stream) shows scene time
+    ``k / frame_rate``; the truth is in the render geometry of that path (px of the
+    :data:`SOURCE_SIZE` or :data:`FILM_SIZE` image). Returns the group path, or ``None`` when the
+    instrument is not on the virtual lab or recorded no frame.
+    """
+    inst = session.instruments[label]
+    settings = inst.settings
+    scene = settings.get("scene", "")
+    source = settings.get("source", "")
+    simulated = bool(session.file[f"instruments/{label}"].attrs.get("simulated", False))
+    if not scene or not (source == "virtual" or (source == "fscan" and simulated)):
+        return None
+    if f"instruments/{label}/frame_index" not in session.file:
+        return None
+    index = np.asarray(session.stream(label, "frame_index").data, dtype=np.int64)
+    if index.size == 0:
+        return None
+    size = SOURCE_SIZE if source == "virtual" else FILM_SIZE
+    lab = scene_lab(scene, size)
+    times = index / float(settings["frame_rate"])
+    truth = lab.truth(times)
+    return write_truth(session, label, truth, lab.camera, lab.mirrors, frame_index=index,
+                       attrs={"instrument": label, "source": source, "frame_rate_hz": float(settings["frame_rate"]),
+                              "image_width": size[0], "image_height": size[1]})
+
+
+def record_all_truth(session: Any) -> None:
+    """Record the virtual-lab truth of every film scanner of ``session`` (called when recording stops)."""
+    for label, inst in session.instruments.items():
+        if getattr(inst, "name", "") == "film_scanner" and f"truth/{label}" not in session.file:
+            record_truth(session, label)
