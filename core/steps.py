@@ -11,14 +11,15 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from .errors import PluginError, Problem
+from .errors import AlgorithmError, PluginError, Problem
 from .hookspecs import hookimpl
 from .params import Parameter, ParameterSet
 
 if TYPE_CHECKING:
+    from .algorithms import Algorithm
     from .registry import Registry
     from .session import Session
 
@@ -48,13 +49,25 @@ class Step(ABC):
 
 class Acquire(Step):
     name = "acquire"
-    description = "record every instrument of the session for a duration"
+    description = "record the instruments of the session for a duration, or until their sources end"
     parameters = ParameterSet(
-        Parameter("seconds", float, unit="s", bounds=(0.0, 7 * 24 * 3600.0), help="how long to record"),
+        Parameter("seconds", float, 0.0, unit="s", bounds=(0.0, 7 * 24 * 3600.0),
+                  help="how long to record; 0 = until every recorded source has ended"),
+        Parameter("instruments", str, "", help="comma-separated labels to record (default: all)"),
     )
 
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        values, problems = cls.parameters.problems(table, where, file)
+        for label in _labels(values.get("instruments", "")):
+            if label not in instruments:
+                problems.append(Problem(f"{where}.instruments", f"no instrument {label!r} in the recipe; "
+                                        f"it has: {', '.join(instruments) or 'none'}", file))
+        return values, problems
+
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        session.record(values["seconds"])
+        session.record(values["seconds"] or None, _labels(values["instruments"]) or None)
 
 
 class Wait(Step):
@@ -85,33 +98,53 @@ class Run(Step):
             algorithm = registry.algorithm(values["algorithm"])
         except PluginError as exc:
             return values, [Problem(f"{where}.algorithm", str(exc), file)]
-        inputs = table.get("inputs", {})
-        if not isinstance(inputs, Mapping):
-            problems.append(Problem(f"{where}.inputs", "must be a table of input name = dataset path", file))
-            inputs = {}
-        declared = {p.name for p in algorithm.inputs}
-        for name, path in inputs.items():
-            if name not in declared:
-                problems.append(Problem(f"{where}.inputs.{name}", f"{algorithm.name} takes no input {name!r}; "
-                                        f"it takes: {', '.join(sorted(declared)) or 'none'}", file))
-            elif not isinstance(path, str) or not path.startswith(("/", "@")):
-                problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
-                                        "'/instruments/cam/frames/data' or a result '@algorithm/output'", file))
-        for p in algorithm.inputs:
-            if not p.optional and p.name not in inputs:
-                problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "
-                                        f"({p.description})", file))
-        params = table.get("parameters", {})
-        if not isinstance(params, Mapping):
-            problems.append(Problem(f"{where}.parameters", "must be a table", file))
-            params = {}
-        typed, more = algorithm.parameters.problems(params, f"{where}.parameters", file)
-        problems += more
-        values.update(inputs=dict(inputs), parameters=typed)
+        inputs, params, problems = algorithm_tables(algorithm, table, where, file)
+        values.update(inputs=inputs, parameters=params)
         return values, problems
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        session.run(values["algorithm"], values["inputs"], values["parameters"])
+        ref = session.run(values["algorithm"], values["inputs"], values["parameters"])
+        if ref.status != "ok":  # stored with its error; later steps would only fail on its absence
+            raise AlgorithmError(f"{ref.path} failed: {ref.error}")
+
+
+def algorithm_tables(algorithm: type[Algorithm], table: Mapping[str, Any], where: str, file: str | None,
+                     provided: Collection[str] = ()) -> tuple[dict[str, str], dict[str, Any], list[Problem]]:
+    """Validate a step's ``inputs`` and ``parameters`` tables against ``algorithm``.
+
+    Inputs are dataset paths (``"/instruments/cam/frames/data"``) or result references
+    (``"@algorithm/output"``, see :meth:`Session.resolve`); ``provided`` names inputs the step
+    supplies itself. Returns the inputs, the typed parameters and every problem found.
+    """
+    problems: list[Problem] = []
+    inputs = _table(table, "inputs", where, file, problems)
+    declared = {p.name for p in algorithm.inputs}
+    for name, path in inputs.items():
+        if name not in declared:
+            problems.append(Problem(f"{where}.inputs.{name}", f"{algorithm.name} takes no input {name!r}; "
+                                    f"it takes: {', '.join(sorted(declared)) or 'none'}", file))
+        elif not isinstance(path, str) or not path.startswith(("/", "@")):
+            problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
+                                    "'/instruments/cam/frames/data' or a result '@algorithm/output'", file))
+    for p in algorithm.inputs:
+        if not p.optional and p.name not in inputs and p.name not in provided:
+            problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "
+                                    f"({p.description})", file))
+    params = _table(table, "parameters", where, file, problems)
+    typed, more = algorithm.parameters.problems(params, f"{where}.parameters", file)
+    return inputs, typed, problems + more
+
+
+def _table(table: Mapping[str, Any], key: str, where: str, file: str | None, problems: list[Problem]) -> dict:
+    value = table.get(key, {})
+    if not isinstance(value, Mapping):
+        problems.append(Problem(f"{where}.{key}", "must be a table", file))
+        return {}
+    return dict(value)
+
+
+def _labels(text: str) -> list[str]:
+    return [label.strip() for label in text.split(",") if label.strip()]
 
 
 @hookimpl

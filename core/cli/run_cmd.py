@@ -10,7 +10,7 @@ from ..session import Session
 from .progress import progress_bar
 
 #: The bundled recipe ``mirrorlab demo`` runs, relative to the repository/installation root.
-DEMO_RECIPE = Path("sessions") / "scan_film.toml"
+DEMO_RECIPE = Path("sessions") / "rssr_mirror.toml"
 
 
 def add(sub: argparse._SubParsersAction) -> None:

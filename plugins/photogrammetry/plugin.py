@@ -22,7 +22,7 @@ import numpy as np
 
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
 from mirrorlab.core.errors import PluginError, Problem, SessionError
-from mirrorlab.core.steps import Step
+from mirrorlab.core.steps import Step, algorithm_tables
 
 from .camera_arrays import CAMERA_KEYS, camera_from_arrays, camera_kind, pinhole_arrays, plane_arrays
 from .cameras import calibrate_pinhole, find_chessboard_corners, fit_plane_calibration
@@ -499,35 +499,6 @@ def calibration_inputs(session: "Session", group: str, algorithm: type[Algorithm
 # ------------------------------------------------------------------------------------------------ recipe steps
 
 
-def _nested(table: Mapping[str, Any], key: str, where: str, file: str | None, problems: list[Problem]) -> dict:
-    value = table.get(key, {})
-    if not isinstance(value, Mapping):
-        problems.append(Problem(f"{where}.{key}", "must be a table", file))
-        return {}
-    return dict(value)
-
-
-def _validate_algorithm_tables(algorithm: type[Algorithm], table: Mapping[str, Any], where: str, file: str | None,
-                               provided: set[str]) -> tuple[dict, dict, list[Problem]]:
-    problems: list[Problem] = []
-    inputs = _nested(table, "inputs", where, file, problems)
-    declared = {p.name for p in algorithm.inputs}
-    for name, path in inputs.items():
-        if name not in declared:
-            problems.append(Problem(f"{where}.inputs.{name}", f"{algorithm.name} takes no input {name!r}; it takes: "
-                                    f"{', '.join(sorted(declared))}", file))
-        elif not isinstance(path, str) or not path.startswith("/"):
-            problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
-                                    "'/truth/markers/real_xy'", file))
-    for p in algorithm.inputs:
-        if not p.optional and p.name not in inputs and p.name not in provided:
-            problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "
-                                    f"({p.description})", file))
-    params = _nested(table, "parameters", where, file, problems)
-    typed, more = algorithm.parameters.problems(params, f"{where}.parameters", file)
-    return inputs, typed, problems + more
-
-
 def _lookup(registry: "Registry", name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:
     try:
         return registry.algorithm(name), []
@@ -575,7 +546,7 @@ class Calibrate(Step):
             except InvalidArgument as exc:
                 problems.append(Problem(f"{where}.pattern", str(exc), file))
             provided = {"object_points", "image_points", "image_size"}
-        inputs, typed, more = _validate_algorithm_tables(algorithm, table, where, file, provided)
+        inputs, typed, more = algorithm_tables(algorithm, table, where, file, provided)
         values.update(inputs=inputs, parameters=typed)
         return values, problems + more
 
@@ -619,7 +590,7 @@ class Reconstruct(Step):
             return values, problems
         if values["calibration"] and not values["calibration"].startswith("/"):
             problems.append(Problem(f"{where}.calibration", "must be a group path such as '/calibration/cam'", file))
-        inputs, typed, more = _validate_algorithm_tables(algorithm, table, where, file, set())
+        inputs, typed, more = algorithm_tables(algorithm, table, where, file, set())
         values.update(inputs=inputs, parameters=typed)
         return values, problems + more
 

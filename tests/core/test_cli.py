@@ -148,3 +148,15 @@ def test_session_new_and_errors(tmp_path: Path) -> None:
     assert missing.returncode == 1 and "no session file" in missing.stderr
     assert run_cli("session").returncode == 2
 
+
+
+def test_acquire_step_subset_must_name_recipe_instruments(tmp_path: Path, acme_site: Path) -> None:
+    recipe = tmp_path / "subset.toml"
+    recipe.write_text(GOOD.replace('action = "acquire"\nseconds = 5', 'action = "acquire"\nseconds = 1\n'
+                                   'instruments = "thermo, cam"'))
+    proc = run_cli("run", str(recipe), "--check", sites=(acme_site,))
+    assert proc.returncode == 2
+    assert "steps.0.instruments: no instrument 'cam' in the recipe; it has: thermo" in proc.stderr
+    ok = run_cli("run", str(recipe), "--out", str(tmp_path / "s.h5"), "--set", 'steps.0.instruments="thermo"',
+                 sites=(acme_site,))
+    assert ok.returncode == 0, ok.stderr
