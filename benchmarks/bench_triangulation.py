@@ -22,7 +22,6 @@ import time
 
 import cv2
 import numpy as np
-
 from mirrorlab.plugins.photogrammetry import reflect, reflection_matrix, triangulate_mirror
 
 F1 = np.array([435.68, 202.6, 1442.024])

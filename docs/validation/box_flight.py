@@ -20,14 +20,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from scipy.stats import spearmanr  # noqa: E402
-
 from mirrorlab.instruments.virtual_lab.box_flight import (  # noqa: E402
     THESIS_FILM_SIGMA_MM,
     BoxFlight,
     simulate_box_flight,
     thesis_box_lab,
 )
+from scipy.stats import spearmanr  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "out"
 PX_PER_MM = 100.0

@@ -10,9 +10,8 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 import mirrorlab.plugins.kinematics as K
+import numpy as np
 from mirrorlab.plugins.kinematics.rssr import THESIS_THETA_DOT
 from mirrorlab.plugins.kinematics.synthetic import (
     box_inertia,

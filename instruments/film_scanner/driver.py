@@ -2,7 +2,8 @@
 
 With ``source = "fscan"`` it drives an FSCAN device (or its simulator) over the line protocol:
 homing, heading, and scanning ``lines`` lines per frame. With ``folder``, ``video``, ``camera`` or ``virtual``
-(rendered frames of a virtual-lab ``scene``) it reads frames from a :mod:`~mirrorlab.instruments.film_scanner.sources` object instead and
+(rendered frames of a virtual-lab ``scene``) it reads frames from a
+:mod:`~mirrorlab.instruments.film_scanner.sources` object instead and
 emits them in the same format, paced at ``frame_rate``. API units: mm and s; the wire speaks
 steps, lines, ms, Hz and DAC counts.
 """
@@ -15,14 +16,13 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
-
 from mirrorlab.core.devices.instrument import Emit, Identity, Reporter, SerialInstrument, Status
 from mirrorlab.core.errors import DeviceDisconnected, DeviceReplyError, ProtocolError
 from mirrorlab.core.params import Parameter, ParameterSet
 from mirrorlab.core.streams import StreamSpec
 
 from .film import PIXEL_MM, Film
-from .mechanics import HOME_SEARCH_STEPS, STEP_S, STEP_UM, STEPS_PER_LINE, CENTRE_STEPS
+from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEP_UM, STEPS_PER_LINE
 from .model import HEAD_LIMIT_LINES, MAX_LINES, FilmScannerModel
 from .sources import FrameSource, load_images, open_source, to_scan_frame
 from .wire import PIXELS, parse_data_line

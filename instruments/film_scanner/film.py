@@ -172,12 +172,12 @@ class Film:
 
     # -- constructors ---------------------------------------------------------------------------
     @classmethod
-    def from_images(cls, images: Sequence[np.ndarray]) -> "Film":
+    def from_images(cls, images: Sequence[np.ndarray]) -> Film:
         """A film whose frames are the given greyscale images (no marker truth)."""
         return cls(frames=images)
 
     @classmethod
-    def generated(cls, n_frames: int = 8, n_markers: int = 4, seed: int = 0) -> "Film":
+    def generated(cls, n_frames: int = 8, n_markers: int = 4, seed: int = 0) -> Film:
         """The default film: white circular markers moving on a dark background (§5.5.1).
 
         Markers (radius 0.25-0.5 mm, i.e. 10.7-21 px across) move smoothly from frame to frame and

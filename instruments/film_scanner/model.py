@@ -16,12 +16,10 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-
 from mirrorlab.core.devices.simulator import CommandError, Delay, LineSimulator
 
 from .film import PITCH_MM, PIXEL_MM, Film
-from .mechanics import (CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEPS_PER_LINE, Carrier, FeedFaults,
-                        LimitHit)
+from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEPS_PER_LINE, Carrier, FeedFaults, LimitHit
 from .optics import Optics, blurred_transmittance, video_counts
 from .wire import encode_bits
 

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
 from mirrorlab.core.devices.instrument import Identity
 from mirrorlab.core.errors import DeviceDisconnected
 

@@ -8,7 +8,6 @@ comparator bits into memory).
 from __future__ import annotations
 
 import numpy as np
-
 from mirrorlab.core.errors import ProtocolError
 
 PIXELS = 512

@@ -8,11 +8,9 @@ lab is a direct frame source (:meth:`VirtualLab.frames`) and the film of the FSC
 """
 
 from .lab import SCENE_NAMES, Outlines, VirtualLab, make_lab
-from .optics import (Mirror, Views, calibration_grid, camera_frame, look_at_camera, thesis_grid_points,
-                     view_points)
+from .optics import Mirror, Views, calibration_grid, camera_frame, look_at_camera, thesis_grid_points, view_points
 from .render import Renderer, RenderSettings, outline_circles
-from .scenes import (BoxScene, FourBarScene, GridScene, Placement, RSSRScene, Scene, SceneState,
-                     UpperLimbScene)
+from .scenes import BoxScene, FourBarScene, GridScene, Placement, RSSRScene, Scene, SceneState, UpperLimbScene
 from .truth import LabTruth, compute_truth, write_truth
 
 __all__ = ["SCENE_NAMES", "BoxScene", "FourBarScene", "GridScene", "LabTruth", "Mirror", "Outlines",

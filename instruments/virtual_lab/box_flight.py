@@ -25,11 +25,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 from mirrorlab.plugins.kinematics import angular_momentum, kabsch, omega_from_rotations
 from mirrorlab.plugins.kinematics.synthetic import box_inertia
 from mirrorlab.plugins.photogrammetry import triangulate_mirror
+from numpy.typing import ArrayLike, NDArray
 
 from .lab import VirtualLab
 from .optics import Mirror, look_at_camera

@@ -10,14 +10,13 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 from mirrorlab.instruments.film_scanner.film import FRAME_H_MM, FRAME_W_MM, Film, Marker
 from mirrorlab.plugins.photogrammetry import PinholeCamera
+from numpy.typing import ArrayLike, NDArray
 
 from .optics import Mirror, calibration_grid, look_at_camera
 from .render import Renderer, RenderSettings, outline_circles
-from .scenes import BoxScene, FourBarScene, GridScene, Placement, RSSRScene, Scene, SceneState, UpperLimbScene
+from .scenes import BoxScene, FourBarScene, GridScene, Placement, RSSRScene, Scene, UpperLimbScene
 from .truth import LabTruth, compute_truth
 
 __all__ = ["SCENE_NAMES", "VirtualLab", "make_lab"]
@@ -58,11 +57,11 @@ class VirtualLab:
         assert self.camera.image_size is not None
         return Renderer(self.camera.image_size, self.settings)
 
-    def with_scene(self, scene: Scene) -> "VirtualLab":
+    def with_scene(self, scene: Scene) -> VirtualLab:
         """The same camera, mirrors and look with another scene (e.g. the calibration grid)."""
         return replace(self, scene=scene)
 
-    def with_settings(self, **changes: object) -> "VirtualLab":
+    def with_settings(self, **changes: object) -> VirtualLab:
         """The same lab with changed :class:`RenderSettings` fields."""
         return replace(self, settings=replace(self.settings, **changes))
 

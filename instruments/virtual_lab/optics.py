@@ -16,9 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 from mirrorlab.plugins.photogrammetry import PinholeCamera, VirtualCamera, reflect, virtual_camera
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["Mirror", "Views", "calibration_grid", "camera_frame", "look_at_camera", "thesis_grid_points",
            "view_points", "THESIS_GRID_X", "THESIS_GRID_Y"]

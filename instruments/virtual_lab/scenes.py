@@ -26,10 +26,9 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 from mirrorlab.plugins.kinematics.rssr import THESIS_RSSR, THESIS_THETA_DOT, RSSRParams, rotate, rssr_state
 from mirrorlab.plugins.kinematics.synthetic import box_inertia, box_vertices, torque_free_rotation
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["BoxScene", "FourBarScene", "GridScene", "Placement", "RSSRScene", "Scene", "SceneState",
            "UpperLimbScene", "GRAVITY_MM_S2"]
@@ -52,7 +51,7 @@ class Placement:
     offset: FloatArray = field(default_factory=lambda: np.zeros(3))
 
     @classmethod
-    def from_euler(cls, angles_xyz: ArrayLike = (0.0, 0.0, 0.0), offset: ArrayLike = (0.0, 0.0, 0.0)) -> "Placement":
+    def from_euler(cls, angles_xyz: ArrayLike = (0.0, 0.0, 0.0), offset: ArrayLike = (0.0, 0.0, 0.0)) -> Placement:
         """Rotation ``Rz @ Ry @ Rx`` from angles (rad) about the fixed X, Y, Z axes, then ``offset`` (mm)."""
         ax, ay, az = (float(a) for a in angles_xyz)
         R = (_rot([0, 0, 1], az) @ _rot([0, 1, 0], ay) @ _rot([1, 0, 0], ax))

@@ -13,12 +13,11 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-
 from mirrorlab.core.devices.instrument import Identity
 from mirrorlab.core.errors import DeviceDisconnected
 from mirrorlab.instruments.film_scanner.film import TEX_H, TEX_W, Film
 from mirrorlab.instruments.film_scanner.sources import FrameSource
+from numpy.typing import NDArray
 
 from .lab import SCENE_NAMES, VirtualLab, make_lab
 from .truth import write_truth

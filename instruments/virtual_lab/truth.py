@@ -10,9 +10,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-
 from mirrorlab.plugins.photogrammetry import PinholeCamera
+from numpy.typing import ArrayLike, NDArray
 
 from .optics import Mirror, Views, view_points
 from .scenes import Scene, SceneState

@@ -417,14 +417,14 @@ def butterworth(
                 out[:, c] = np.nan
                 continue
             sos = _butter_sos(order, f, fs=fs, output="sos")
-            out[:, c] = _apply_runs(tt, x2[:, c], lambda tr, xr: _butter_run(tr, xr, sos), 3)
+            out[:, c] = _apply_runs(tt, x2[:, c], lambda tr, xr, sos=sos: _butter_run(tr, xr, sos), 3)
         return out.reshape(xx.shape)
     if not 0 < cutoff < fs / 2:
         raise InsufficientSamples(
             f"cutoff {cutoff} Hz must lie between 0 and the Nyquist frequency {fs / 2:.6g} Hz"
         )
     sos = _butter_sos(order, cutoff, fs=fs, output="sos")
-    return _apply_runs(tt, xx, lambda tr, xr: _butter_run(tr, xr, sos), 3)
+    return _apply_runs(tt, xx, lambda tr, xr, sos=sos: _butter_run(tr, xr, sos), 3)
 
 
 def residual_cutoff(
@@ -483,7 +483,7 @@ def residual_cutoff(
     res = np.empty((n_freq, x2.shape[1]))
     for i, f in enumerate(freqs):
         sos = _butter_sos(order, f, fs=fs, output="sos")
-        y = _apply_runs(tt, x2, lambda tr, xr: _butter_run(tr, xr, sos), 3)
+        y = _apply_runs(tt, x2, lambda tr, xr, sos=sos: _butter_run(tr, xr, sos), 3)
         res[i] = np.sqrt(np.nanmean((x2 - y) ** 2, axis=0))
     i0 = int(round(noise_band[0] * (n_freq - 1)))
     i1 = int(round(noise_band[1] * (n_freq - 1))) + 1

@@ -199,10 +199,9 @@ def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
         raise KinematicsIOError(f"{p}: no such TSV file")
     hdr: dict[str, list[str]] = {}
     with p.open(errors="replace") as fh:
-        for n_hdr, ln in enumerate(fh):
+        for n_hdr, ln in enumerate(fh):  # noqa: B007 - n_hdr is used after the loop
             cells = ln.rstrip("\r\n").split("\t")
             if cells[0] == "Frame":
-                columns = cells
                 break
             hdr[cells[0]] = cells[1:]
         else:
@@ -212,9 +211,9 @@ def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
         n_markers = int(hdr["NO_OF_MARKERS"][0])
     except (KeyError, ValueError, IndexError) as exc:
         raise KinematicsIOError(f"{p}: header lacks FREQUENCY / NO_OF_MARKERS") from exc
-    data = np.loadtxt(p, skiprows=n_hdr + 1, delimiter="\t", usecols=range(2, 2 + 3 * n_markers), ndmin=2)
-    frames = np.loadtxt(p, skiprows=n_hdr + 1, delimiter="\t", usecols=0, ndmin=1)
-    pts = data.reshape(data.shape[0], n_markers, 3)
+    table = np.loadtxt(p, skiprows=n_hdr + 1, delimiter="\t", usecols=[0, *range(2, 2 + 3 * n_markers)], ndmin=2)
+    frames = table[:, 0]
+    pts = table[:, 1:].reshape(table.shape[0], n_markers, 3)
     pts[np.all(pts == 0.0, axis=-1)] = np.nan
     names = [x.strip() for x in hdr.get("MARKER_NAMES", [])]
     labels = [names[i] if i < len(names) and names[i] else f"unlabeled_{i - len([n for n in names if n]) + 1}"

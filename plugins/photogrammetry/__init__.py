@@ -1,7 +1,38 @@
 """Photogrammetry: camera models, calibration, parallel / central / mirror projection, error analysis."""
 
 # --- mirror method (mirror.py, mirror_pose.py) ---
-from .errors import DegenerateGeometry  # noqa: E402
+from .cameras import (  # noqa: E402
+    CameraModel,
+    ChessboardDetections,
+    PinholeCamera,
+    PlaneCalibration,
+    calibrate_pinhole,
+    chessboard_object_points,
+    find_chessboard_corners,
+    fit_plane_calibration,
+)
+from .central import (  # noqa: E402
+    CentralCamera,
+    CentralChainResult,
+    film_to_perspective,
+    object_image_distances,
+    perspective_to_world,
+    reconstruct_chain_central,
+)
+
+# --- end mirror method ---
+# --- cameras, parallel / central projection, error analysis (cameras.py, parallel.py, central.py, sensitivity.py) ---
+from .errors import (  # noqa: E402
+    AmbiguousSign,
+    CalibrationError,
+    DegenerateGeometry,  # noqa: E402
+    InconsistentLength,
+    InvalidArgument,
+    InvalidCamera,
+    NoValidRoot,
+    RayMissesSphere,
+    RayNotForward,
+)
 from .mirror import (  # noqa: E402
     MirrorNormal,
     MirrorTriangulation,
@@ -21,43 +52,12 @@ from .mirror_pose import (  # noqa: E402
     calibrate_mirrors_takahashi,
     mirror_pose_from_views,
 )
-# --- end mirror method ---
-
-# --- cameras, parallel / central projection, error analysis (cameras.py, parallel.py, central.py, sensitivity.py) ---
-from .errors import (  # noqa: E402
-    AmbiguousSign,
-    CalibrationError,
-    InconsistentLength,
-    InvalidArgument,
-    InvalidCamera,
-    NoValidRoot,
-    RayMissesSphere,
-    RayNotForward,
-)
-from .cameras import (  # noqa: E402
-    CameraModel,
-    ChessboardDetections,
-    PinholeCamera,
-    PlaneCalibration,
-    calibrate_pinhole,
-    chessboard_object_points,
-    find_chessboard_corners,
-    fit_plane_calibration,
-)
 from .parallel import (  # noqa: E402
     ParallelChainResult,
     min_shooting_distance_rotation,
     min_shooting_distance_translation,
     reconstruct_chain_parallel,
     relative_image_error,
-)
-from .central import (  # noqa: E402
-    CentralCamera,
-    CentralChainResult,
-    film_to_perspective,
-    object_image_distances,
-    perspective_to_world,
-    reconstruct_chain_central,
 )
 from .sensitivity import (  # noqa: E402
     THESIS_CENTRAL_ERRORS,

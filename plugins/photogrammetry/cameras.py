@@ -12,10 +12,11 @@ frame is right-handed and, for the plane calibration, the calibration plane is `
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Literal, Protocol, Sequence, runtime_checkable
+from typing import Literal, Protocol, runtime_checkable
 
 import cv2
 import numpy as np
@@ -449,7 +450,7 @@ class PinholeCamera:
         img, _ = cv2.projectPoints(Pc, np.zeros(3), np.zeros(3), self.K, self.dist)
         return img.reshape(-1, 2)
 
-    def view(self, index: int) -> "PinholeCamera":
+    def view(self, index: int) -> PinholeCamera:
         """The same intrinsics with the extrinsics of calibration view ``index``."""
         R, t = self.views[index]
         return PinholeCamera(self.K, self.dist, R, t, self.image_size, self.rms, self.views, self.per_view_rms)
@@ -513,7 +514,8 @@ def calibrate_pinhole(
         )
     nv = len(object_points_list)
     if nv < 3:
-        raise CalibrationError(f"only {nv} views; Zhang calibration needs at least 3 views of the board in different orientations")
+        raise CalibrationError(f"only {nv} views; Zhang calibration needs at least 3 views of the board "
+                               "in different orientations")
     obj, img = [], []
     for v, (o, i) in enumerate(zip(object_points_list, image_points_list)):
         o = np.asarray(o, dtype=np.float32).reshape(-1, 3)

@@ -9,8 +9,8 @@ x along +X, y upward. All lengths in mm.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray

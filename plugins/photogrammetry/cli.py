@@ -17,11 +17,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
-from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.cli.options import add_parameter_options, collected
 from mirrorlab.core.cli.progress import progress_bar
+from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.errors import Problem, ValidationError
 from mirrorlab.core.events import EventBus
 from mirrorlab.core.session import Session
@@ -34,8 +33,7 @@ __all__ = ["add"]
 
 
 def _algorithms() -> dict[str, type[Algorithm]]:
-    from .plugin import (CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror,
-                         ReconstructParallel)
+    from .plugin import CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror, ReconstructParallel
 
     return {"calibrate_plane": CalibratePlane, "calibrate_pinhole": CalibratePinhole,
             "parallel": ReconstructParallel, "central": ReconstructCentral, "mirror": ReconstructMirror}

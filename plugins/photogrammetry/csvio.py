@@ -31,9 +31,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
-
 from mirrorlab.core.errors import Problem, ValidationError
+from numpy.typing import NDArray
 
 __all__ = ["MarkerTable", "read_marker_csv", "read_columns_csv", "write_points_csv", "read_points_csv"]
 

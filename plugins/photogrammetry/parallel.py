@@ -7,8 +7,8 @@ Z along the viewing direction (right-handed when x, y, Z are).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray

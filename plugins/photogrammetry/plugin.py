@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
 from mirrorlab.core.errors import PluginError, Problem, SessionError
 from mirrorlab.core.steps import Step, algorithm_tables
@@ -28,10 +27,22 @@ from .camera_arrays import CAMERA_KEYS, camera_from_arrays, camera_kind, pinhole
 from .cameras import calibrate_pinhole, find_chessboard_corners, fit_plane_calibration
 from .central import CentralCamera
 from .errors import CalibrationError, InvalidArgument, PhotogrammetryError
-from .frames import _renumber, image_to_film, mirror_normal_frames, reconstruct_central_frames, \
-    reconstruct_mirror_frames, reconstruct_parallel_frames
-from .sensitivity import MirrorScene, mirror_angle_sweep, mirror_reconstruct, monte_carlo, \
-    mirror_point_sensitivity, sphere_points
+from .frames import (
+    _renumber,
+    image_to_film,
+    mirror_normal_frames,
+    reconstruct_central_frames,
+    reconstruct_mirror_frames,
+    reconstruct_parallel_frames,
+)
+from .sensitivity import (
+    MirrorScene,
+    mirror_angle_sweep,
+    mirror_point_sensitivity,
+    mirror_reconstruct,
+    monte_carlo,
+    sphere_points,
+)
 
 if TYPE_CHECKING:
     from mirrorlab.core.registry import Registry
@@ -240,7 +251,9 @@ class ReconstructMirror(Algorithm):
             except PhotogrammetryError as exc:
                 raise _renumber(exc, np.arange(lo, hi)) from exc
         context.progress(n_frames, n_frames, "done")
-        cat = (lambda k: np.concatenate([getattr(p, k) for p in parts]))
+        def cat(key: str) -> np.ndarray:
+            return np.concatenate([getattr(p, key) for p in parts])
+
         per_frame = normal.ndim == 2
         return {"points": cat("points"), "gap": cat("gap"), "angle": cat("angle"),
                 "normal": cat("normal") if per_frame else parts[0].normal,
@@ -455,7 +468,7 @@ def chessboard_inputs(images: str | Path, pattern: str, square: float, detector:
             {"found": [Path(f).name for f in det.found], "missing": [Path(f).name for f in det.missing]})
 
 
-def store_calibration(session: "Session", camera: str, ref: "ResultRef", extra: Mapping[str, Any] | None = None,
+def store_calibration(session: Session, camera: str, ref: ResultRef, extra: Mapping[str, Any] | None = None,
                       attrs: Mapping[str, Any] | None = None) -> str:
     """Write the camera of a successful calibration run to ``/calibration/<camera>``.
 
@@ -478,7 +491,7 @@ def store_calibration(session: "Session", camera: str, ref: "ResultRef", extra: 
     return "/" + path
 
 
-def require_new_camera(session: "Session", camera: str) -> None:
+def require_new_camera(session: Session, camera: str) -> None:
     """Refuse early if ``/calibration/<camera>`` exists (groups are never overwritten)."""
     if not camera or "/" in camera:
         raise InvalidArgument(f"camera name {camera!r} must be a non-empty name without '/', e.g. 'cam'")
@@ -486,7 +499,7 @@ def require_new_camera(session: "Session", camera: str) -> None:
         raise SessionError(f"/calibration/{camera} already exists in {session.path}; choose another camera name")
 
 
-def calibration_inputs(session: "Session", group: str, algorithm: type[Algorithm]) -> dict[str, str]:
+def calibration_inputs(session: Session, group: str, algorithm: type[Algorithm]) -> dict[str, str]:
     """Dataset paths of a calibration group for the camera inputs ``algorithm`` declares."""
     key = group.strip("/")
     if key not in session.file:
@@ -499,7 +512,7 @@ def calibration_inputs(session: "Session", group: str, algorithm: type[Algorithm
 # ------------------------------------------------------------------------------------------------ recipe steps
 
 
-def _lookup(registry: "Registry", name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:
+def _lookup(registry: Registry, name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:
     try:
         return registry.algorithm(name), []
     except PluginError as exc:
@@ -529,7 +542,7 @@ class Calibrate(Step):
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
         values, problems = cls.parameters.problems(scalar, where, file)
         if problems:
@@ -550,7 +563,7 @@ class Calibrate(Step):
         values.update(inputs=inputs, parameters=typed)
         return values, problems + more
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         require_new_camera(session, values["camera"])
         inputs: dict[str, Any] = dict(values["inputs"])
         extra: dict[str, Any] = {}
@@ -580,7 +593,7 @@ class Reconstruct(Step):
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: "Registry", instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
         values, problems = cls.parameters.problems(scalar, where, file)
         if problems:
@@ -594,7 +607,7 @@ class Reconstruct(Step):
         values.update(inputs=inputs, parameters=typed)
         return values, problems + more
 
-    def execute(self, session: "Session", values: Mapping[str, Any]) -> None:
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         name = f"reconstruct_{values['method']}"
         inputs = dict(values["inputs"])
         if values["calibration"]:

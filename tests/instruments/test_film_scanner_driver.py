@@ -12,7 +12,6 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-
 from mirrorlab.core.devices import SimulatorServer
 from mirrorlab.core.errors import ValidationError
 from mirrorlab.instruments.film_scanner import FilmScanner

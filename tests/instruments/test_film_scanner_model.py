@@ -10,7 +10,6 @@ from collections.abc import Iterator
 import cv2
 import numpy as np
 import pytest
-
 from mirrorlab.core.devices import SimulatorServer, open_port
 from mirrorlab.core.devices.simulator import CommandError, Delay
 from mirrorlab.core.errors import DeviceReplyError

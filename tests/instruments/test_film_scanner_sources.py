@@ -11,7 +11,6 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-
 from mirrorlab.core.errors import DeviceDisconnected
 from mirrorlab.instruments.film_scanner import FilmScanner
 from mirrorlab.instruments.film_scanner.sources import natural_key

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
-
 from mirrorlab.plugins.kinematics import (
     InsufficientSamples,
     NonMonotonicTime,
@@ -19,6 +17,7 @@ from mirrorlab.plugins.kinematics import (
 )
 from mirrorlab.plugins.kinematics.synthetic import derivative_errors
 from mirrorlab.plugins.kinematics.thesis_spline import natural_tangents
+from scipy.interpolate import CubicSpline
 
 
 def _literal_port(t, y):

@@ -6,13 +6,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirrorlab.core.errors import AlgorithmError
 from mirrorlab.plugins.kinematics import (
+    THESIS_KERNEL,
     InsufficientSamples,
     NonMonotonicTime,
     NonUniformSampling,
-    THESIS_KERNEL,
     butterworth,
     fill_gaps,
     residual_cutoff,

@@ -6,8 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial.transform import Rotation
-
 from mirrorlab.plugins.kinematics import (
     DegenerateJointGeometry,
     elbow_flexion,
@@ -20,6 +18,7 @@ from mirrorlab.plugins.kinematics import (
     upper_limb_angles,
 )
 from mirrorlab.plugins.kinematics.rssr import rotate
+from scipy.spatial.transform import Rotation
 
 
 def _unit(v):

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
 from mirrorlab.core import Session
+
 from tests.support import run_cli
 
 

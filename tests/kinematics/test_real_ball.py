@@ -6,7 +6,6 @@ import warnings
 
 import numpy as np
 import pytest
-
 from mirrorlab.plugins.kinematics import derivatives, read_qualisys_tsv
 
 G = 9806.65  # mm/s^2

@@ -6,8 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial.transform import Rotation
-
 from mirrorlab.plugins.kinematics import (
     DegenerateAngularVelocity,
     DegenerateMarkerSet,
@@ -25,6 +23,7 @@ from mirrorlab.plugins.kinematics.synthetic import (
     torque_free_rotation,
     tumbling_box_markers,
 )
+from scipy.spatial.transform import Rotation
 
 I_BOX = box_inertia(2.2, [0.2, 0.2, 0.3])
 

@@ -6,7 +6,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from mirrorlab.plugins.kinematics import (
     THESIS_RSSR,
     CannotAssemble,

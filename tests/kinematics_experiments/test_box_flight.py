@@ -10,9 +10,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial.transform import Rotation
-from scipy.stats import spearmanr
-
 from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.instruments.virtual_lab.box_flight import (
     THESIS_FILM_SIGMA_MM,
@@ -22,6 +19,8 @@ from mirrorlab.instruments.virtual_lab.box_flight import (
 )
 from mirrorlab.plugins.kinematics import kabsch
 from mirrorlab.plugins.kinematics.synthetic import box_vertices
+from scipy.spatial.transform import Rotation
+from scipy.stats import spearmanr
 
 VERTS = box_vertices([200.0, 200.0, 300.0])
 NOISE_PX = THESIS_FILM_SIGMA_MM * 100.0          # 0.003 mm on film at 100 px/mm

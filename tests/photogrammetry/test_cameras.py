@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirrorlab.plugins.photogrammetry import cameras
 from mirrorlab.plugins.photogrammetry.cameras import (
     CameraModel,
@@ -38,8 +37,9 @@ def rot(axis: str, a: float) -> np.ndarray:
             "y": np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])}[axis]
 
 
-def film_image(points, center, R_tilt=np.eye(3), focal=30.0):
+def film_image(points, center, R_tilt=None, focal=30.0):
     """Pinhole at ``center`` looking along -Z (camera x = X, y = -Y), tilted by R_tilt; film mm."""
+    R_tilt = np.eye(3) if R_tilt is None else R_tilt
     Rc = np.array([[1, 0, 0], [0, -1, 0], [0, 0, -1.0]]) @ R_tilt.T
     v = (np.asarray(points, float) - center) @ Rc.T
     return focal * v[:, :2] / v[:, 2:3]

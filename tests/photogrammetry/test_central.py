@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirrorlab.plugins.photogrammetry import central
 from mirrorlab.plugins.photogrammetry.central import (
     CentralCamera,

@@ -8,7 +8,6 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
-
 from mirrorlab.plugins.photogrammetry import (
     DegenerateGeometry,
     intersect_rays,

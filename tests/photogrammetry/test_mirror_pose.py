@@ -7,7 +7,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from mirrorlab.plugins.photogrammetry import (
     calibrate_mirrors_takahashi,
     mirror_pose_from_views,

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from mirrorlab.plugins.photogrammetry import figures
 from mirrorlab.plugins.photogrammetry import sensitivity as sens_mod
 from mirrorlab.plugins.photogrammetry.central import CentralCamera

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from mirrorlab.plugins.photogrammetry.cameras import PinholeCamera
 from mirrorlab.plugins.photogrammetry.mirror import reflect
 from mirrorlab.plugins.photogrammetry.sensitivity import THESIS_F1, THESIS_G, THESIS_GRID_X, THESIS_GRID_Y, MirrorScene

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirrorlab.core import Session
 from mirrorlab.plugins.photogrammetry.camera_arrays import camera_from_arrays, pinhole_arrays
 from mirrorlab.plugins.photogrammetry.cameras import chessboard_object_points
@@ -17,7 +16,7 @@ from mirrorlab.plugins.photogrammetry.central import CentralCamera
 from mirrorlab.plugins.photogrammetry.mirror import reflect
 from mirrorlab.plugins.photogrammetry.sensitivity import MirrorScene, mirror_point_sensitivity
 
-from .scenes import F1, FOCAL, G, NORMAL, grid_points, markers, pinhole_camera, plane_images
+from .scenes import F1, FOCAL, NORMAL, G, grid_points, markers, pinhole_camera, plane_images
 
 
 @pytest.fixture

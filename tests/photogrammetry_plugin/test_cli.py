@@ -8,14 +8,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
 from mirrorlab.core import Session
 from mirrorlab.plugins.photogrammetry.camera_arrays import pinhole_arrays
 from mirrorlab.plugins.photogrammetry.csvio import read_points_csv
 from mirrorlab.plugins.photogrammetry.mirror import reflect
+
 from tests.support import SHARED_DATA, run_cli
 
-from .scenes import F1, G, NORMAL, grid_points, markers, pinhole_camera, plane_images
+from .scenes import F1, NORMAL, G, grid_points, markers, pinhole_camera, plane_images
 
 CHESS = SHARED_DATA / "calibration" / "chessboard_pycalib"
 

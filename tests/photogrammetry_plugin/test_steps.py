@@ -7,14 +7,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from mirrorlab.core import Session, get_registry
 from mirrorlab.core.errors import ValidationError
 from mirrorlab.core.recipes import load_recipe, run_recipe
 from mirrorlab.plugins.photogrammetry.camera_arrays import pinhole_arrays
 from mirrorlab.plugins.photogrammetry.mirror import reflect
 
-from .scenes import G, NORMAL, markers, pinhole_camera
+from .scenes import NORMAL, G, markers, pinhole_camera
 
 K = np.array([[800.0, 0, 320], [0, 800.0, 240], [0, 0, 1]])
 

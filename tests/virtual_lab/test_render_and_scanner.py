@@ -7,7 +7,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
 from mirrorlab.core import Session
 from mirrorlab.core.devices.simulator import CommandError, Delay
 from mirrorlab.instruments.film_scanner import FilmScannerModel

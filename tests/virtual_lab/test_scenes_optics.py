@@ -5,11 +5,21 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from mirrorlab.instruments.film_scanner.driver import VIRTUAL_SCENES
-from mirrorlab.instruments.virtual_lab import (SCENE_NAMES, BoxScene, FourBarScene, Mirror, Placement, RSSRScene,
-                                               UpperLimbScene, calibration_grid, look_at_camera, make_lab,
-                                               thesis_grid_points, view_points)
+from mirrorlab.instruments.virtual_lab import (
+    SCENE_NAMES,
+    BoxScene,
+    FourBarScene,
+    Mirror,
+    Placement,
+    RSSRScene,
+    UpperLimbScene,
+    calibration_grid,
+    look_at_camera,
+    make_lab,
+    thesis_grid_points,
+    view_points,
+)
 from mirrorlab.plugins.kinematics import kabsch, rssr_state, upper_limb_angles
 
 
