@@ -2,7 +2,8 @@
 
 Run:  python docs/validation/photogrammetry_thesis.py
 Prints Fig. 2.4, Tables 2.1–2.3, the §4 central-projection sensitivities, Table 3.1 and the
-Fig. 3.23 mirror-angle minimum next to the thesis / spec values, and writes PNG figures into
+Fig. 3.23 mirror-angle minimum next to the thesis / spec values (with why Table 3.1 and Fig. 3.23
+cannot be reproduced: docs/photogrammetry.md, last section), and writes PNG figures into
 docs/validation/out/ (git-ignored). tests/photogrammetry/test_sensitivity.py imports the functions
 below so this script cannot rot.
 """
@@ -159,6 +160,48 @@ def fig_3_23(angles: np.ndarray | None = None, scene: MirrorScene | None = None)
     return {"angles": a, "errors": e, "argmin": float(a[np.argmin(e)])}
 
 
+#: Why Table 3.1 / Fig. 3.23 are not reproduced (search of Nov. 2026; docs/photogrammetry.md, last section).
+TABLE_3_1_NOT_REPRODUCIBLE = """\
+  Not reproducible: a search over plausible shooting conditions (tilted 30 mm camera, F1 Z 0.8-2.5 m,
+  marker 0.7-2.5 m from F1 and in frame directly and in the mirror, reflection point within +-500 mm of G
+  on the 1 m mirror) found no condition within +-30 % per row with the printed perturbations
+  (best max |ratio - 1| = 1.54-1.59; T comes out x0.22, Gx x0.33, Fz x2.6).
+  - G enters only through n.G, so Gx : Gz = |n_x| : |n_z| (checked above); the printed Gx = Gz = 0.8 fix
+    T in [0.72, 0.85] rad and |g| = 1.13 mm/mm.
+  - T/|g| = 2.3 and Vx/|g| = 1.3 need grazing incidence (|QV|/cos(theta_i) ~ 23 m for 1e-4 rad,
+    ray path/cos(theta_i) ~ 27 m for 0.003 mm): each printed perturbation looks 10x too small.
+  - Only film 0.03 mm + T 1e-3 rad + F acting on the line origins with stored rays (which makes
+    Fy = 1.0 exactly) reaches +-30 % (max 28 %), and that condition has no interior Fig. 3.23 minimum;
+    forcing the minimum to psi = 0.68 rad costs >= 71 % on some row. At printed precision Fx = 1.8,
+    Fz = 0.2 need |g| >= 1.6, contradicting |g| = 1.13 from the G rows.
+  Fig. 3.23's angle is defined in the thesis as psi = angle(line camera-object, mirror plane)."""
+
+
+def table_3_1_structure(scene: MirrorScene | None = None) -> dict[str, float]:
+    """Structural checks behind the Table 3.1 discussion (docs/photogrammetry.md).
+
+    Returns the relative residual of the identity ``c_Gx n_z = c_Gz n_x`` (G enters only through n.G),
+    the mirror angle ``T`` and ``psi`` (angle between the camera-marker line and the mirror plane, the
+    abscissa of Fig. 3.23) of ``scene``, |g| = |c_G| per mm of mirror shift along its normal, and the
+    ratios T/|g| and Vx/|g| (mm per mm) next to the thesis's, plus the T range implied by Gx = Gz = 0.8.
+    """
+    scene = scene or MirrorScene.thesis()
+    r = mirror_point_sensitivity(scene, [MIRROR_MARKER], THESIS_MIRROR_ERRORS)
+    c = {k: v[0] for k, v in r.as_dict().items()}
+    n = scene.normal
+    g = np.hypot(np.linalg.norm(c["Gx"]), np.linalg.norm(c["Gz"]))
+    line = (MIRROR_MARKER - scene.camera_center) / np.linalg.norm(MIRROR_MARKER - scene.camera_center)
+    thesis_g = float(np.hypot(TABLE_3_1_MM["Gx"], TABLE_3_1_MM["Gz"]))
+    return {
+        "identity_residual": float(np.linalg.norm(c["Gx"] * n[2] - c["Gz"] * n[0]) / np.linalg.norm(c["Gx"])),
+        "T": float(scene.mirror_angle), "psi": float(np.arcsin(abs(n @ line))),
+        "g": float(g), "thesis_g": thesis_g,
+        "T_over_g": float(np.linalg.norm(c["T"]) / g), "thesis_T_over_g": TABLE_3_1_MM["T"] / thesis_g,
+        "Vx_over_g": float(np.linalg.norm(c["Vx"]) / g), "thesis_Vx_over_g": TABLE_3_1_MM["Vx"] / thesis_g,
+        "thesis_T_min": float(np.arctan2(0.75, 0.85)), "thesis_T_max": float(np.arctan2(0.85, 0.75)),
+    }
+
+
 def main() -> None:
     np.set_printoptions(precision=3, suppress=True)
     f = fig_2_4()
@@ -197,6 +240,13 @@ def main() -> None:
     print(f"\nFig. 3.23 mirror-angle sweep: minimum at {sw['argmin']:.3f} rad (thesis {FIG_3_23_MIN_RAD} rad; "
           f"small 0.4-1.2 rad); error at 0.4/0.68/1.2 rad: "
           f"{np.interp([0.4, 0.68, 1.2], sw['angles'], sw['errors']).round(3)} mm")
+    st = table_3_1_structure()
+    print(f"\nTable 3.1 / Fig. 3.23 structure (§10 geometry: T = {st['T']:.3f} rad, psi = {st['psi']:.3f} rad):")
+    print(f"  identity c_Gx n_z = c_Gz n_x: relative residual {st['identity_residual']:.1e}; thesis Gx = Gz = 0.8 -> "
+          f"T in [{st['thesis_T_min']:.2f}, {st['thesis_T_max']:.2f}] rad")
+    print(f"  |g| ours {st['g']:.3f}  thesis {st['thesis_g']:.3f};  T/|g| ours {st['T_over_g']:.3f}  thesis "
+          f"{st['thesis_T_over_g']:.2f};  Vx/|g| ours {st['Vx_over_g']:.3f}  thesis {st['thesis_Vx_over_g']:.2f}")
+    print(TABLE_3_1_NOT_REPRODUCIBLE)
 
     from mirrorlab.plugins.photogrammetry.figures import (
         plot_error_map, plot_min_shooting_distance, plot_mirror_angle_sweep)

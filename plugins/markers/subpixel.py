@@ -116,6 +116,38 @@ def _measure_group(image: NDArray, threshold: float, boxes: NDArray[np.int64], s
     return out
 
 
+def _is_binary_frame(image: NDArray, binary: NDArray[np.uint8]) -> bool:
+    """True for a 0/255 uint8 frame (the scanner's comparator output): it equals its binarisation."""
+    return image.dtype == np.uint8 and cv2.countNonZero(cv2.compare(image, binary, cv2.CMP_NE)) == 0
+
+
+def _measure_binary(binary: NDArray[np.uint8], boxes: NDArray[np.int64], shapes: list,
+                    overlaps: NDArray[np.bool_], threshold: float) -> NDArray[np.float64]:
+    """:func:`_measure_group`'s table for a 0/255 frame, from OpenCV's pixel moments of each blob.
+
+    On a binary frame every marker pixel has the same weight ``255 - T``, so the weighted moments are
+    the pixel moments times that weight, the peak is 255 and the background 0: one ``cv2.moments``
+    call per blob replaces the window stack (about 3× faster on 512 × 344 scanner frames).
+    """
+    out = np.full((len(boxes), 13), np.nan)
+    weight = 255.0 - threshold
+    for i, (x, y, w, h) in enumerate(boxes):
+        roi = binary[y:y + h, x:x + w]
+        if overlaps[i]:  # another blob reaches into this box: keep only this blob's filled contour
+            fill = np.zeros((h, w), np.uint8)
+            cv2.drawContours(fill, [shapes[i]], 0, 255, thickness=-1, offset=(-int(x), -int(y)))
+            roi = cv2.bitwise_and(roi, fill)
+        m = cv2.moments(roi, binaryImage=True)
+        n = m["m00"]
+        if n > 0:
+            out[i, :7] = (x + m["m10"] / n, y + m["m01"] / n, n * weight, m["mu20"] * weight,
+                          m["mu11"] * weight, m["mu02"] * weight, n)
+        else:
+            out[i, :7] = (np.nan, np.nan, 0.0, 0.0, 0.0, 0.0, 0.0)
+    out[:, 7] = 255.0
+    return out
+
+
 def subpixel_centroids(image: NDArray, binary: NDArray[np.uint8], threshold: float, *,
                        min_area: float = 3.0, max_area: float = np.inf, max_eccentricity: float = 1.0,
                        reject_border: bool = True, ellipse: bool = False,
@@ -156,10 +188,13 @@ def subpixel_centroids(image: NDArray, binary: NDArray[np.uint8], threshold: flo
     order = idx[np.argsort(boxes[idx, 2] * boxes[idx, 3], kind="stable")]
     overlaps = _box_overlaps(boxes) if labels is None else np.zeros(len(boxes), bool)
     table = np.empty((len(boxes), 13))
-    for g in range(0, order.size, GROUP):
-        sel = order[g:g + GROUP]
-        table[sel] = _measure_group(image, threshold, boxes[sel], [shapes[i] for i in sel], labels, ellipse,
-                                    overlaps[sel])
+    if labels is None and not ellipse and _is_binary_frame(image, binary):
+        table[idx] = _measure_binary(binary, boxes[idx], [shapes[i] for i in idx], overlaps[idx], threshold)
+    else:
+        for g in range(0, order.size, GROUP):
+            sel = order[g:g + GROUP]
+            table[sel] = _measure_group(image, threshold, boxes[sel], [shapes[i] for i in sel], labels, ellipse,
+                                        overlaps[sel])
     t = table[idx]
     ecc, axes, angle, cov = shape_from_moments(t[:, 2], t[:, 3], t[:, 4], t[:, 5], t[:, 6])
     xy = t[:, :2]
