@@ -13,7 +13,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-
 from mirrorlab.plugins.photogrammetry.central import CentralCamera
 from mirrorlab.plugins.photogrammetry.parallel import (
     min_shooting_distance_rotation,
@@ -165,14 +164,15 @@ TABLE_3_1_NOT_REPRODUCIBLE = """\
   Not reproducible: a search over plausible shooting conditions (tilted 30 mm camera, F1 Z 0.8-2.5 m,
   marker 0.7-2.5 m from F1 and in frame directly and in the mirror, reflection point within +-500 mm of G
   on the 1 m mirror) found no condition within +-30 % per row with the printed perturbations
-  (best max |ratio - 1| = 1.54-1.59; T comes out x0.22, Gx x0.33, Fz x2.6).
+  (best max |ratio - 1| = 1.54-1.59 with F acting through the rays (T x0.22, Gx x0.33, Fz x2.6), 0.85 with
+  stored rays).
   - G enters only through n.G, so Gx : Gz = |n_x| : |n_z| (checked above); the printed Gx = Gz = 0.8 fix
     T in [0.72, 0.85] rad and |g| = 1.13 mm/mm.
   - T/|g| = 2.3 and Vx/|g| = 1.3 need grazing incidence (|QV|/cos(theta_i) ~ 23 m for 1e-4 rad,
     ray path/cos(theta_i) ~ 27 m for 0.003 mm): each printed perturbation looks 10x too small.
   - Only film 0.03 mm + T 1e-3 rad + F acting on the line origins with stored rays (which makes
     Fy = 1.0 exactly) reaches +-30 % (max 28 %), and that condition has no interior Fig. 3.23 minimum;
-    forcing the minimum to psi = 0.68 rad costs >= 71 % on some row. At printed precision Fx = 1.8,
+    with the minimum forced to psi = 0.68 rad the best found misses a row by 71 %. At printed precision Fx = 1.8,
     Fz = 0.2 need |g| >= 1.6, contradicting |g| = 1.13 from the G rows.
   Fig. 3.23's angle is defined in the thesis as psi = angle(line camera-object, mirror plane)."""
 
@@ -219,7 +219,8 @@ def main() -> None:
     d = np.abs(s["diff_vs_printed"])
     print("\nTable 2.3: (Table 2.1 - Table 2.2) vs printed errors; entries off by > 0.015 mm:")
     for k, i, j in np.argwhere(d > 0.015):
-        print(f"  NO.{k + 1}-{i + 1} {'XYZ'[j]}: recomputed {s['recomputed_error'][k, i, j]:7.2f}  printed {TABLE_2_3[k, i, j]:7.2f}")
+        print(f"  NO.{k + 1}-{i + 1} {'XYZ'[j]}: recomputed {s['recomputed_error'][k, i, j]:7.2f}  "
+              f"printed {TABLE_2_3[k, i, j]:7.2f}")
     print(f"  mean  ours (of printed values) {s['printed_mean']}  thesis {TABLE_2_3_MEAN}")
     print(f"  max   ours (of printed values) {s['printed_max']}  thesis {TABLE_2_3_MAX}")
 
@@ -233,7 +234,8 @@ def main() -> None:
           MIRROR_MARKER, ")")
     t = table_3_1()
     for n, row in t.items():
-        print(f"  {n:3s} ours {row['ours_mm']:6.3f} mm {row['ours_share']:5.1f} %   thesis {row['thesis_mm']:5.2f} mm {row['thesis_share']:5.1f} %")
+        print(f"  {n:3s} ours {row['ours_mm']:6.3f} mm {row['ours_share']:5.1f} %   "
+              f"thesis {row['thesis_mm']:5.2f} mm {row['thesis_share']:5.1f} %")
     print(f"  sum  ours {sum(r['ours_mm'] for r in t.values()):.3f} mm   thesis 11.58 mm")
 
     sw = fig_3_23()
@@ -248,8 +250,7 @@ def main() -> None:
           f"{st['thesis_T_over_g']:.2f};  Vx/|g| ours {st['Vx_over_g']:.3f}  thesis {st['thesis_Vx_over_g']:.2f}")
     print(TABLE_3_1_NOT_REPRODUCIBLE)
 
-    from mirrorlab.plugins.photogrammetry.figures import (
-        plot_error_map, plot_min_shooting_distance, plot_mirror_angle_sweep)
+    from mirrorlab.plugins.photogrammetry.figures import plot_error_map, plot_min_shooting_distance, plot_mirror_angle_sweep
 
     cam = CentralCamera(**THESIS_CAMERA)
     pts, res = central_error_map(cam)

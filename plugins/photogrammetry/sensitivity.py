@@ -6,8 +6,9 @@ Figs 3.22–3.23); spec §4, §5, §11. Lengths in mm, angles in rad, right-hand
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -415,7 +416,7 @@ class MirrorScene:
         return _mirror_normal_from_angle(self.mirror_angle)
 
     @classmethod
-    def thesis(cls, mirror_angle: float = float(np.radians(50.0)), focal: float = 30.0) -> "MirrorScene":
+    def thesis(cls, mirror_angle: float = float(np.radians(50.0)), focal: float = 30.0) -> MirrorScene:
         """§10 geometry: camera at F1 looking along -Z (film parallel to Z = 0), ``focal`` mm lens,
         G of DATA 2800, calibrated (quadratic, exact here) on the 91-point grid of DATA 2900."""
         from .cameras import fit_plane_calibration
@@ -426,7 +427,7 @@ class MirrorScene:
         cal = fit_plane_calibration(film, grid, 0.0, THESIS_F1)
         return cls(cal, THESIS_F1.copy(), THESIS_G.copy(), float(mirror_angle))
 
-    def with_angle(self, mirror_angle: float) -> "MirrorScene":
+    def with_angle(self, mirror_angle: float) -> MirrorScene:
         return MirrorScene(self.calibration, self.camera_center, self.mirror_point, float(mirror_angle))
 
     def image_points(self, points: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
