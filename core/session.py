@@ -8,7 +8,9 @@ Create a session, add instruments (real or simulated), record, run algorithms, r
     >>> with Session.create(path, operator="ana", description="doc example") as s:
     ...     cam = s.add_instrument("cam", "film_scanner", simulate=True,
     ...                            settings={"lines": 32}, simulator={"clock": "FAST"})
-    ...     s.record(seconds=0.5)
+    ...     stats = s.record(seconds=0.5)
+    >>> stats["cam/frames"]["dropped"]
+    0
     >>> with Session.open(path) as s:
     ...     times, frames = s.stream("cam", "frames")
     ...     s.status, frames.shape[1:]
