@@ -83,7 +83,8 @@ class LineClient:
         while not self._stop.is_set():
             try:
                 chunk = self.port.read(self.port.in_waiting or 1)
-            except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
+            # a port closed by another thread fails in many ways (socket fd -1: ValueError)
+            except (serial.SerialException, OSError, TypeError, AttributeError, ValueError) as exc:
                 if not self._stop.is_set():
                     self._lines.put(_Hangup(exc))
                 return

@@ -15,20 +15,28 @@ from typing import Any
 import numpy as np
 from mirrorlab.core.devices.instrument import Identity
 from mirrorlab.core.errors import DeviceDisconnected
-from mirrorlab.instruments.film_scanner.film import TEX_H, TEX_W, Film
+from mirrorlab.instruments.film_scanner.film import OVERSAMPLE, TEX_H, TEX_W, Film
 from mirrorlab.instruments.film_scanner.sources import FrameSource
+from mirrorlab.instruments.film_scanner.wire import PIXELS
 from numpy.typing import NDArray
 
 from .lab import SCENE_NAMES, VirtualLab, make_lab
 from .truth import write_truth
 
-__all__ = ["FILM_SIZE", "SOURCE_SIZE", "VirtualSource", "record_all_truth", "record_truth",
-           "scene_lab", "virtual_film"]
+__all__ = ["FILM_EDGE_LINES", "FILM_SIZE", "SCAN_FRAME_LINES", "SOURCE_SIZE", "VirtualSource",
+           "record_all_truth", "record_truth", "scan_first_line", "scene_lab", "virtual_film"]
 
 #: Render size of the direct source (4:3, resized by the scanner to 512 x 384).
 SOURCE_SIZE = (1024, 768)
 #: Render size of a film frame: the film texture itself (24 mm x 18 mm at 4 x the scan pitch).
 FILM_SIZE = (TEX_W, TEX_H)
+#: Scan lines of a whole 18 mm film frame (the direct source is resized to 512 x this).
+SCAN_FRAME_LINES = TEX_H // OVERSAMPLE
+#: Dark frame edge of a virtual film, in scan lines: the top lines of every frame are unexposed, as
+#: the FSCAN heading needs (it stops at the first whole dark line after the clear inter-frame band).
+#: A scene whose top rows are bright (the calibration grid fills the frame) would otherwise be
+#: headed wherever its first all-dark line happens to be (89 lines into the grid frame).
+FILM_EDGE_LINES = 4
 
 
 def scene_lab(scene: str, image_size: tuple[int, int]) -> VirtualLab:
@@ -42,6 +50,10 @@ def scene_lab(scene: str, image_size: tuple[int, int]) -> VirtualLab:
 def virtual_film(scene: str, frame_rate: float, n_frames: int) -> Film:
     """A film of ``n_frames`` frames of ``scene`` shot at ``frame_rate`` (Hz), frame k at t = k / rate.
 
+    Frames are rendered at :data:`FILM_SIZE`; their top :data:`FILM_EDGE_LINES` scan lines are
+    dark (unexposed frame edge), so the scanner's heading finds every frame at its top edge
+    whatever the scene shows there.
+
     Examples
     --------
     >>> film = virtual_film("rssr", 3.0, 2)
@@ -49,7 +61,15 @@ def virtual_film(scene: str, frame_rate: float, n_frames: int) -> Film:
     (2, 8)
     """
     lab = scene_lab(scene, FILM_SIZE)
-    return lab.film(np.arange(n_frames) / float(frame_rate))
+    film = lab.film(np.arange(n_frames) / float(frame_rate))
+    edge = FILM_EDGE_LINES * OVERSAMPLE
+
+    def exposed(k: int) -> NDArray[np.uint8]:
+        img = np.array(film.image(k), dtype=np.uint8)
+        img[:edge] = 0                      # the dark frame edge the heading looks for
+        return img
+
+    return Film(generator=exposed, n_frames=film.n_frames, markers=film.markers)
 
 
 class VirtualSource(FrameSource):
@@ -100,14 +120,32 @@ class VirtualSource(FrameSource):
         return Identity(self.kind, "mirrorlab", "virtual_lab", self.scene, f"{self.frame_rate:g} Hz")
 
 
+def scan_first_line(source: str, lines: int, head_skip: int) -> int:
+    """The film line (of the :data:`SCAN_FRAME_LINES` of a whole frame) that is row 0 of the scanned frame.
+
+    ``source = "virtual"`` keeps the central ``lines`` of the resized frame; the FSCAN digitiser
+    starts ``head_skip`` lines after the frame's top edge found by heading (nominally: heading's
+    own error is part of the digitising error).
+
+    Examples
+    --------
+    >>> scan_first_line("virtual", 344, 37), scan_first_line("fscan", 344, 37)
+    (20, 37)
+    """
+    return (SCAN_FRAME_LINES - int(lines)) // 2 if source == "virtual" else int(head_skip)
+
+
 def record_truth(session: Any, label: str) -> str | None:
     """Write the ground truth of the frames instrument ``label`` recorded to ``/truth/<label>/``.
 
     Applies to a ``film_scanner`` with ``source = "virtual"``, or a simulated ``fscan`` whose film
     is a virtual-lab scene. Frame ``k`` (the ``frame_index`` stream) shows scene time
     ``k / frame_rate``; the truth is in the render geometry of that path (px of the
-    :data:`SOURCE_SIZE` or :data:`FILM_SIZE` image). Returns the group path, or ``None`` when the
-    instrument is not on the virtual lab or recorded no frame.
+    :data:`SOURCE_SIZE` or :data:`FILM_SIZE` image). The attributes ``scan_width``,
+    ``scan_frame_lines`` and ``scan_first_line`` say how those pixels map to the recorded
+    (scanner) frames: ``col = (x + 0.5) * scan_width / image_width - 0.5``, ``row = (y + 0.5) *
+    scan_frame_lines / image_height - 0.5 - scan_first_line``. Returns the group path, or ``None``
+    when the instrument is not on the virtual lab or recorded no frame.
     """
     inst = session.instruments[label]
     settings = inst.settings
@@ -127,7 +165,10 @@ def record_truth(session: Any, label: str) -> str | None:
     truth = lab.truth(times)
     return write_truth(session, label, truth, lab.camera, lab.mirrors, frame_index=index,
                        attrs={"instrument": label, "source": source, "frame_rate_hz": float(settings["frame_rate"]),
-                              "image_width": size[0], "image_height": size[1]})
+                              "image_width": size[0], "image_height": size[1], "scan_width": PIXELS,
+                              "scan_frame_lines": SCAN_FRAME_LINES,
+                              "scan_first_line": scan_first_line(source, settings.get("lines", 344),
+                                                                 settings.get("head_skip", 37))})
 
 
 def record_all_truth(session: Any) -> None:

@@ -211,7 +211,12 @@ class MirrorTracks(Algorithm):
 
 
 class RSSRMarkers(Algorithm):
-    """Which reconstructed track is the input-crank joint S_A and which the output joint S_C; frame times."""
+    """Which reconstructed track is the input-crank joint S_A and which the output joint S_C; frame times.
+
+    Frame times are ``(frame_index - first) x period``. The period is ``1 / frame_rate`` when given
+    (a scanned film: the recorded stamps are when each frame was digitised, seconds apart and
+    irregular, not when it was shot), else the Theil-Sen slope of the stamps against the index.
+    """
 
     name = "rssr_markers"
     version = "0.1.0"
@@ -220,6 +225,9 @@ class RSSRMarkers(Algorithm):
         Parameter("O_A", str, "0,0,0", help="input pivot x,y,z (mm), world frame"),
         Parameter("e", str, "0,0,1", help="input axis direction x,y,z"),
         Parameter("crank", float, 61.0, unit="mm", bounds=(0.0, None), help="input crank radius |a0|"),
+        Parameter("frame_rate", float, 0.0, unit="Hz", bounds=(0.0, None),
+                  help="shooting rate of the frames; 0 = estimate it from the recorded stamps. Give it for "
+                       "a scanned film: its stamps are scan times, not the camera's"),
     )
     inputs = (Port("points", "(F, T, 3) reconstructed tracks", "mm"),
               Port("time", "(F,) recorded frame stamps", "s"),
@@ -227,7 +235,7 @@ class RSSRMarkers(Algorithm):
     outputs = (Port("S_A", "(F, 3) input-crank joint", "mm"), Port("S_C", "(F, 3) output-crank joint", "mm"),
                Port("tracks", "(2,) track numbers of S_A and S_C"),
                Port("time", "(F,) frame time k x period from the first frame", "s"),
-               Port("frame_period", "() frame period, Theil-Sen slope of the stamps", "s"))
+               Port("frame_period", "() frame period: 1 / frame_rate, else the Theil-Sen slope of the stamps", "s"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         from mirrorlab.plugins.kinematics.plugin import parse_vector
@@ -251,7 +259,10 @@ class RSSRMarkers(Algorithm):
         c = int(others[0])
         # the camera's frame period: Theil-Sen slope of stamp vs frame number (median of all pairwise
         # slopes: distant pairs average out the stamping jitter, and one late frame does not matter)
-        period = float(theilslopes(stamp, index)[0]) if len(np.unique(index)) > 1 else float("nan")
+        if params["frame_rate"] > 0:     # a film's frame k was shot at k / rate, whenever it was scanned
+            period = 1.0 / params["frame_rate"]
+        else:
+            period = float(theilslopes(stamp, index)[0]) if len(np.unique(index)) > 1 else float("nan")
         time = (index - index[0]) * period if len(index) > 1 else np.zeros(1)
         context.progress(1, 1, "labelled")
         return {"S_A": pts[:, a], "S_C": pts[:, c], "tracks": np.array([a, c]), "time": time,

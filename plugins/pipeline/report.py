@@ -8,9 +8,11 @@ mean 3-D distance (``linear_sum_assignment``), then:
 
 * 3-D RMS error per marker and the systematic error per axis (mean of measured − true over all
   frames and markers), printed beside the thesis's 1.3 / −6.9 / 10.9 mm (§3.6.1, Table 3.2);
-* pairing: a pair is correct when both its direct and mirror image lie within 1 px of the truth's
-  images of that marker (truth pixels converted to the scanner frame: resized to 512 x 384, the
-  central ``lines`` rows kept);
+* pairing: a pair is correct when its direct and its mirror image are, of all the frame's true
+  images, nearest to that marker's direct and mirror image, within 3 px (truth pixels converted to
+  the scanner frame with :func:`scan_pixels` and the truth's ``scan_first_line``);
+* digitising error: every true image's nearest detection (``detect_markers`` on this instrument's
+  frames) minus the true position, RMS and mean per axis in scanner px (x across, y along the feed);
 * kinematics: RMS of measured minus analytic angular velocity and acceleration.
 """
 
@@ -30,28 +32,121 @@ from .errors import PipelineError
 if TYPE_CHECKING:
     from mirrorlab.core.session import Session
 
-__all__ = ["THESIS_SYSTEMATIC_MM", "DemoReport", "build_report", "format_report", "scan_pixels", "write_figures"]
+__all__ = ["THESIS_SYSTEMATIC_MM", "DemoReport", "DigitisingError", "build_report", "digitising_error",
+           "format_report", "pair_is_correct", "scan_pixels", "write_figures"]
 
 #: Systematic error per axis (X, Y, Z) of the thesis's RSSR mirror experiment, mm.
 THESIS_SYSTEMATIC_MM = (1.3, -6.9, 10.9)
 #: Scanner frame geometry: 512 px across, 384 lines for a whole 24 x 18 mm frame.
 SCAN_WIDTH, SCAN_LINES = 512, 384
-PAIR_TOL_PX = 1.0
+#: A detection farther than this from a true image is not its measurement (pairing check and
+#: digitising error), px. The film path's worst image error is ~2 px, the markers are >= 10 px apart.
+DIGITISE_GATE_PX = 3.0
 
 FloatArray = NDArray[np.float64]
 
 
-def scan_pixels(xy: FloatArray, width: int, height: int, lines: int) -> FloatArray:
+def scan_pixels(xy: FloatArray, width: int, height: int, lines: int, first_line: float | None = None) -> FloatArray:
     """Truth pixels of a ``width`` x ``height`` render → pixels of the scanner frame with ``lines`` lines.
+
+    The render is a whole 24 x 18 mm frame (512 px x 384 lines); the scanned frame starts at film
+    line ``first_line`` (default: the central ``lines``, as the direct source crops them; the
+    FSCAN digitiser starts ``head_skip`` lines after the frame edge, see the truth's
+    ``scan_first_line`` attribute).
 
     Examples
     --------
     >>> scan_pixels(np.array([[1.5, 20.5]]), 1024, 768, 344).tolist()
     [[0.5, -10.0]]
+    >>> scan_pixels(np.array([[1.5, 20.5]]), 1024, 768, 344, first_line=37).tolist()
+    [[0.5, -27.0]]
     """
+    top = (SCAN_LINES - lines) // 2 if first_line is None else first_line
     x = (xy[..., 0] + 0.5) * SCAN_WIDTH / width - 0.5
-    y = (xy[..., 1] + 0.5) * SCAN_LINES / height - 0.5 - (SCAN_LINES - lines) // 2
+    y = (xy[..., 1] + 0.5) * SCAN_LINES / height - 0.5 - top
     return np.stack([x, y], axis=-1)
+
+
+def pair_is_correct(real_xy: FloatArray, virtual_xy: FloatArray, true_real: FloatArray, true_virtual: FloatArray,
+                    marker: int, gate: float = DIGITISE_GATE_PX) -> NDArray[np.bool_]:
+    """Per frame: is (``real_xy``, ``virtual_xy``) the direct and mirror image of ``marker``?
+
+    True when, among all true images of the frame (direct and mirror, every marker), the one
+    nearest to ``real_xy`` is ``marker``'s direct image and the one nearest to ``virtual_xy`` is its
+    mirror image, both within ``gate`` px. A pairing mistake swaps markers or views; the
+    digitising error only moves the images by a fraction of a pixel.
+
+    Parameters
+    ----------
+    real_xy, virtual_xy : (F, 2) the pair of one track per frame, px.
+    true_real, true_virtual : (F, M, 2) true direct and mirror images, px (NaN not visible).
+
+    Examples
+    --------
+    >>> tr, tv = np.array([[[0.0, 0], [10, 0]]]), np.array([[[50.0, 0], [60, 0]]])
+    >>> pair_is_correct(np.array([[0.4, 0]]), np.array([[50.5, 0]]), tr, tv, 0).tolist()
+    [True]
+    >>> pair_is_correct(np.array([[0.4, 0]]), np.array([[59.5, 0]]), tr, tv, 0).tolist()
+    [False]
+    """
+    M = true_real.shape[1]
+    images = np.concatenate([true_real, true_virtual], axis=1)                    # (F, 2M, 2)
+
+    def nearest(xy: FloatArray) -> tuple[NDArray[np.int64], FloatArray]:
+        d = np.linalg.norm(xy[:, None] - images, axis=2)
+        d = np.where(np.isfinite(d), d, np.inf)
+        i = np.argmin(d, axis=1)
+        return i, np.take_along_axis(d, i[:, None], axis=1)[:, 0]
+
+    ir, dr = nearest(np.asarray(real_xy, float))
+    iv, dv = nearest(np.asarray(virtual_xy, float))
+    return (ir == marker) & (iv == M + marker) & (dr < gate) & (dv < gate)
+
+
+@dataclass(frozen=True)
+class DigitisingError:
+    """Detected image positions against the truth's, in scanner pixels (x across, y along the feed).
+
+    ``rms`` (2,) and ``systematic`` (2,) per axis (px), ``rms_2d`` (px), ``matched`` of ``visible``
+    true images (direct and mirror) with a detection within ``gate`` px.
+    """
+
+    rms: FloatArray
+    systematic: FloatArray
+    rms_2d: float
+    matched: int
+    visible: int
+    gate: float
+
+
+def digitising_error(detected: FloatArray, true_xy: FloatArray, gate: float = DIGITISE_GATE_PX) -> DigitisingError:
+    """Each true image's nearest detection (within ``gate`` px) minus the true position.
+
+    Parameters
+    ----------
+    detected : (F, K, 2) detections per frame, NaN-padded, scanner px.
+    true_xy : (F, V, 2) true image positions per frame (every view of every marker), NaN where not
+        visible, scanner px.
+
+    Examples
+    --------
+    >>> e = digitising_error(np.array([[[10.2, 5.0], [50.0, 7.1], [np.nan, np.nan]]]),
+    ...                      np.array([[[50.0, 7.0], [10.0, 5.0], [200.0, 3.0]]]))
+    >>> np.round(e.systematic, 3).tolist(), e.matched, e.visible
+    ([0.1, 0.05], 2, 2)
+    """
+    d = np.linalg.norm(detected[:, None] - true_xy[:, :, None], axis=3)          # (F, V, K)
+    d = np.where(np.isfinite(d), d, np.inf)
+    nearest = np.argmin(d, axis=2) if d.shape[2] else np.zeros(d.shape[:2], np.int64)
+    dist = np.take_along_axis(d, nearest[..., None], axis=2)[..., 0] if d.shape[2] else np.full(d.shape[:2], np.inf)
+    ok = dist < gate
+    err = np.take_along_axis(detected, nearest[..., None], axis=1) - true_xy     # (F, V, 2)
+    e = err[ok]
+    visible = int(np.all(np.isfinite(true_xy), axis=2).sum())
+    if not len(e):
+        return DigitisingError(np.full(2, np.nan), np.full(2, np.nan), float("nan"), 0, visible, gate)
+    return DigitisingError(np.sqrt(np.mean(e ** 2, axis=0)), e.mean(axis=0), float(np.sqrt(np.mean(np.sum(e ** 2, 1)))),
+                           int(len(e)), visible, gate)
 
 
 @dataclass
@@ -79,6 +174,8 @@ class DemoReport:
     kinematics: dict[str, FloatArray]
     analytic: dict[str, FloatArray]
     kinematic_rms: dict[str, float]
+    digitising: DigitisingError | None = None
+    source: str = ""
     figures: list[str] = field(default_factory=list)
 
     def store(self, session: Session) -> str:
@@ -87,14 +184,19 @@ class DemoReport:
         while name in session.file:
             n += 1
             name = f"report-{n}"
-        session.write_group(name, {
+        dg = self.digitising
+        extra = {} if dg is None else {
+            "digitising_rms": dg.rms, "digitising_systematic": dg.systematic,
+            "digitising_images": np.array([dg.matched, dg.visible])}
+        session.write_group(name, {**extra,
             "rms_per_marker": self.rms_per_marker, "systematic": self.systematic,
             "thesis_systematic": np.array(THESIS_SYSTEMATIC_MM), "frames_per_marker": self.frames_per_marker,
             "pairs": np.array([self.pairs_correct, self.pairs_decided, self.pairs_visible]),
             "kinematic_rms": np.array([self.kinematic_rms[k] for k in sorted(self.kinematic_rms)]),
         }, {"labels": list(self.labels), "kinematic_keys": sorted(self.kinematic_rms), "figures": list(self.figures),
             "units": "mm, rad/s, rad/s^2", "calibration_rms_mm": self.calibration_rms,
-            "normal_angle_rad": self.normal_angle,
+            "normal_angle_rad": self.normal_angle, "source": self.source,
+            "digitising_units": "scanner px, (x across, y along the feed); images (matched, visible)",
             "description": "demo summary: measurements of this file against its /truth"})
         return "/" + name
 
@@ -144,16 +246,17 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     settings = schema.get_json(f[f"instruments/{instrument}"], "settings", {})
     lines = int(settings.get("lines", SCAN_LINES))
     w, h = int(tg.attrs["image_width"]), int(tg.attrs["image_height"])
-    t_real = scan_pixels(tg["real_xy"][()], w, h, lines)                        # (F, M, 2)
-    t_virt = scan_pixels(tg["virtual_xy"][()][:, 0], w, h, lines)               # (F, M, 2), mirror 0
+    first = float(tg.attrs["scan_first_line"]) if "scan_first_line" in tg.attrs else None
+    t_real = scan_pixels(tg["real_xy"][()], w, h, lines, first)                 # (F, M, 2)
+    t_all = scan_pixels(tg["virtual_xy"][()], w, h, lines, first)               # (F, K, M, 2)
+    t_virt = t_all[:, 0]                                                        # mirror 0
     mt = _latest(session, "mirror_tracks")
     rxy, vxy = np.asarray(mt["real_xy"], float), np.asarray(mt["virtual_xy"], float)
     decided = np.all(np.isfinite(rxy), axis=2) & np.all(np.isfinite(vxy), axis=2)  # (F, T)
     correct = 0
     track_to_marker = dict(zip(rows.tolist(), cols.tolist(), strict=True))
     for t, m in track_to_marker.items():
-        ok = (np.linalg.norm(rxy[:, t] - t_real[:, m], axis=1) < PAIR_TOL_PX) & \
-             (np.linalg.norm(vxy[:, t] - t_virt[:, m], axis=1) < PAIR_TOL_PX)
+        ok = pair_is_correct(rxy[:, t], vxy[:, t], t_real, t_virt, m)
         correct += int(np.sum(ok & decided[:, t]))
     visible = int(np.sum(tg["real_visible"][()] & tg["virtual_visible"][()][:, 0]))
 
@@ -170,6 +273,10 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     angle = float(np.arccos(np.clip(abs(normal @ true_normal) / np.linalg.norm(normal) / np.linalg.norm(true_normal),
                                     -1, 1)))
 
+    detected = _detections(session, instrument)
+    digitising = None if detected is None or len(detected) != F else digitising_error(
+        detected, np.concatenate([t_real, t_all.reshape(F, -1, 2)], axis=1))
+
     kin = {k: np.asarray(v, float) for k, v in _latest(session, "rssr_angles").items()}
     markers = _latest(session, "rssr_markers")
     time = np.asarray(markers["time"], float)
@@ -183,7 +290,17 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     return DemoReport(str(session.path), labels, F, float(markers["frame_period"]), time, measured, true_pos, rms,
                       have.sum(axis=0).astype(np.int64), systematic, correct, int(decided.sum()), visible,
                       cal.get("rms", float("nan")), cal.get("points", 0), cal.get("model", ""), normal, angle,
-                      kin, analytic, k_rms)
+                      kin, analytic, k_rms, digitising, schema.attr_str(tg, "source"))
+
+
+def _detections(session: Session, instrument: str) -> FloatArray | None:
+    """``xy`` of the latest successful ``detect_markers`` run on ``instrument``'s frames, or ``None``."""
+    frames = f"/instruments/{instrument}/frames/data"
+    for ref in reversed([r for r in session.results("detect_markers") if r.status == "ok"]):
+        data = session.result(ref)
+        if str(data.attrs.get("inputs", {}).get("frames", "")).rstrip("/") == frames and "xy" in data.outputs:
+            return np.asarray(data.outputs["xy"], float)
+    return None
 
 
 def format_report(r: DemoReport) -> str:
@@ -197,6 +314,17 @@ def format_report(r: DemoReport) -> str:
         f"{np.degrees(r.normal_angle):.3f} deg from the true mirror",
         f"  pairing        {r.pairs_correct}/{r.pairs_decided} pairs correct ({pct:.1f} %), "
         f"{r.pairs_decided}/{r.pairs_visible} visible pairs found",
+    ]
+    dg = r.digitising
+    if dg is not None:
+        chain = "film + line-scan digitiser" if r.source == "fscan" else "direct rendering"
+        lines += [
+            f"  digitising error ({chain}): detected - true image positions, scanner px",
+            f"    {dg.matched}/{dg.visible} images within {dg.gate:g} px      across (x)   along feed (y)",
+            f"    RMS {dg.rms_2d:6.3f} px                       {dg.rms[0]:8.3f}   {dg.rms[1]:8.3f} px",
+            f"    systematic (mean)                      {dg.systematic[0]:+8.3f}   {dg.systematic[1]:+8.3f} px",
+        ]
+    lines += [
         "  3-D RMS error per marker (against /truth):",
     ]
     for label, e, n in zip(r.labels, r.rms_per_marker, r.frames_per_marker, strict=True):
