@@ -132,14 +132,19 @@ class InstrumentConformance:
 
     def test_garbage_is_reported(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, server = sim
-        server.endpoint.faults.garble = 0.5
-        with pytest.raises((ProtocolError, DeviceTimeout)):
-            for _ in range(5):
+        server.endpoint.faults.garble = 0.2
+        errors: set[type] = set()
+        for _ in range(20):  # garbled newlines give timeouts; garbled text gives ProtocolError
+            try:
                 inst.identify()
+            except (ProtocolError, DeviceTimeout) as exc:
+                errors.add(type(exc))
+            if ProtocolError in errors:
+                break
         server.endpoint.faults.garble = 0.0
+        assert ProtocolError in errors, "garbled replies must raise ProtocolError"
         assert inst.client is not None and inst.client.garbage_lines > 0
-        inst.client.resync()
-        assert inst.query("PING").fields == ["PONG"]
+        assert inst.query("PING").fields == ["PONG"]  # the client resynchronises by itself
 
     def test_disconnect_is_reported_and_reconnect_works(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, server = sim
@@ -185,7 +190,8 @@ class InstrumentConformance:
         inst, server = sim
         inst.configure()
         events: list[str] = []
-        inst.report = lambda level, kind, message, **data: events.append(kind)
+        messages: list[str] = []
+        inst.report = lambda level, kind, message, **data: (events.append(kind), messages.append(message))
         router, clock = StreamRouter(), SessionClock()
         specs = {s.name: s for s in inst.streams()}
         inst.start(Emitter("dut", router, clock, specs))
@@ -203,8 +209,8 @@ class InstrumentConformance:
             time.sleep(0.05)
         after = samples()
         inst.stop()
-        assert "connection_lost" in events and "reconnected" in events, events
-        assert inst.failed is None
+        assert "connection_lost" in events and "reconnected" in events, messages
+        assert inst.failed is None, messages
         assert after > before, "no samples after the reconnect"
 
 

@@ -71,6 +71,7 @@ class LineClient:
         self.on_unsolicited = on_unsolicited
         self.garbage_lines = 0
         self._abort_sent = False
+        self._desynced = False
         self._lines: queue.Queue[str | _Hangup] = queue.Queue()
         self._lock = threading.Lock()  # one command at a time
         self._stop = threading.Event()
@@ -133,6 +134,8 @@ class LineClient:
         timeout = self.timeout if timeout is None else timeout
         with self._lock:
             self._drain_stale()
+            if self._desynced:
+                self._resynchronise(timeout)
             self._write(command.encode("ascii") + b"\n")
             return self._collect(command, timeout)
 
@@ -179,6 +182,7 @@ class LineClient:
             try:
                 item = self._lines.get(timeout=max(0.0, remaining))
             except queue.Empty:
+                self._desynced = True  # its reply may still come: the next command resynchronises first
                 raise DeviceTimeout(
                     f"{self.device} did not answer {command!r} within {timeout:g} s: check that it "
                     "is powered and connected, the baud rate, and that the port is the device's"
@@ -199,22 +203,33 @@ class LineClient:
                 data.append(item)
                 continue
             self.garbage_lines += 1
-            self.resync()
+            self._desynced = True
             raise ProtocolError(
                 f"{self.device} sent garbage in reply to {command!r}: {item[:60]!r}. Check the baud "
                 "rate and cable; electrical noise or a wrong device on this port give this"
             )
 
-    def resync(self, quiet: float = 0.1) -> None:
-        """Discard input until the line has been quiet for ``quiet`` seconds."""
+    def _resynchronise(self, timeout: float) -> None:
+        """After a timeout or garbage: ``PING`` and drop every line before its ``OK PONG``.
+
+        The device answers strictly in order, so a late reply to the failed command arrives before
+        the PONG and is discarded instead of being taken as the next command's reply.
+        """
+        self._write(b"PING\n")
+        deadline = time.monotonic() + timeout
         while True:
             try:
-                item = self._lines.get(timeout=quiet)
+                item = self._lines.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
-                return
+                raise DeviceTimeout(f"{self.device} did not answer PING within {timeout:g} s while "
+                                    "resynchronising after an error: check power and cable") from None
             if isinstance(item, _Hangup):
-                self._lines.put(item)
+                raise DeviceDisconnected(f"{self.device}: connection lost ({item.error}); "
+                                         "check the cable and power, then reconnect") from item.error
+            if item == "OK PONG":
+                self._desynced = False
                 return
+            log.info("%s: discarding %r while resynchronising", self.device, item)
 
     @property
     def alive(self) -> bool:

@@ -133,16 +133,16 @@ def digitising_error(detected: FloatArray, true_xy: FloatArray, gate: float = DI
     >>> e = digitising_error(np.array([[[10.2, 5.0], [50.0, 7.1], [np.nan, np.nan]]]),
     ...                      np.array([[[50.0, 7.0], [10.0, 5.0], [200.0, 3.0]]]))
     >>> np.round(e.systematic, 3).tolist(), e.matched, e.visible
-    ([0.1, 0.05], 2, 2)
+    ([0.1, 0.05], 2, 3)
     """
+    visible = int(np.all(np.isfinite(true_xy), axis=2).sum())
+    if detected.shape[1] == 0:
+        detected = np.full((len(detected), 1, 2), np.nan)
     d = np.linalg.norm(detected[:, None] - true_xy[:, :, None], axis=3)          # (F, V, K)
     d = np.where(np.isfinite(d), d, np.inf)
-    nearest = np.argmin(d, axis=2) if d.shape[2] else np.zeros(d.shape[:2], np.int64)
-    dist = np.take_along_axis(d, nearest[..., None], axis=2)[..., 0] if d.shape[2] else np.full(d.shape[:2], np.inf)
-    ok = dist < gate
-    err = np.take_along_axis(detected, nearest[..., None], axis=1) - true_xy     # (F, V, 2)
-    e = err[ok]
-    visible = int(np.all(np.isfinite(true_xy), axis=2).sum())
+    nearest = np.argmin(d, axis=2)
+    ok = np.take_along_axis(d, nearest[..., None], axis=2)[..., 0] < gate
+    e = (np.take_along_axis(detected, nearest[..., None], axis=1) - true_xy)[ok]  # (matched, 2)
     if not len(e):
         return DigitisingError(np.full(2, np.nan), np.full(2, np.nan), float("nan"), 0, visible, gate)
     return DigitisingError(np.sqrt(np.mean(e ** 2, axis=0)), e.mean(axis=0), float(np.sqrt(np.mean(np.sum(e ** 2, 1)))),
