@@ -107,6 +107,23 @@ class LineSimulator:
             raise CommandError("E01", f"unknown command {words[0]}")
         return handler(words[1:])
 
+    def execute(self, line: str) -> list[str]:
+        """Run one command in-process, without a server: its reply lines (``ERR ...`` included).
+
+        Delays advance the simulated clock only (as ``SIM:CLOCK FAST``); for unit tests of a model.
+        """
+        out: list[str] = []
+        try:
+            for item in self.handle(line):
+                if isinstance(item, Delay):
+                    self.advance(item.seconds)
+                else:
+                    out.append(item)
+        except CommandError as exc:
+            self.last_error = (exc.code, exc.text)
+            out.append(f"ERR {exc.code} {exc.text}")
+        return out
+
     @staticmethod
     def expect(args: list[str], n: int, usage: str) -> None:
         if len(args) != n:

@@ -19,7 +19,6 @@ import h5py
 import numpy as np
 import pytest
 from mirrorlab.core.algorithms import execute
-from mirrorlab.core.devices.simulator import CommandError, Delay
 from mirrorlab.core.store import schema
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
 from mirrorlab.instruments.film_scanner.model import FilmScannerModel
@@ -112,17 +111,6 @@ def test_3d_errors_and_time_base(film_run: tuple[Path, str]) -> None:
     assert f"{FRAMES} frames, 3 frames/s" in stdout
 
 
-def _run(model: FilmScannerModel, line: str) -> list[str]:
-    out: list[str] = []
-    try:
-        for item in model.handle(line):
-            if isinstance(item, Delay):
-                model.advance(item.seconds)
-            else:
-                out.append(item)
-    except CommandError as exc:
-        out.append(f"ERR {exc.code} {exc.text}")
-    return out
 
 
 def test_grid_film_is_headed_at_its_top_edge() -> None:
@@ -131,7 +119,7 @@ def test_grid_film_is_headed_at_its_top_edge() -> None:
     model = FilmScannerModel(film, seed=1)
     for cmd in ("SIM:CLOCK FAST", "SIM:FAULT CLEAR", "CLAMP BASE", "HOME", "CLAMP CARRIER", "HEADTHR 128 128 20",
                 "HEAD", "SCAN 2"):
-        assert _run(model, cmd)[-1].startswith("OK"), cmd
+        assert model.execute(cmd)[-1].startswith("OK"), cmd
     scan_y = [float(v) for v in next(x for x in model.truth_lines() if x.startswith("SCAN ")).split()[2:]]
     first_line = (scan_y[0] - film.frame_top_mm(0)) / PIXEL_MM - 0.5      # film line of scan row 0
     assert abs(first_line - 20) < 1.0, first_line

@@ -11,7 +11,6 @@ import cv2
 import numpy as np
 import pytest
 from mirrorlab.core.devices import SimulatorServer, open_port
-from mirrorlab.core.devices.simulator import CommandError, Delay
 from mirrorlab.core.errors import DeviceReplyError
 from mirrorlab.instruments.film_scanner import Film, FilmScanner, FilmScannerModel
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
@@ -42,18 +41,6 @@ def truth(dev: FilmScanner) -> dict[str, list[list[str]]]:
     return out
 
 
-def run(model: FilmScannerModel, line: str) -> list[str]:
-    """Execute one command in-process (FAST clock): the reply lines, ``ERR`` included."""
-    out: list[str] = []
-    try:
-        for item in model.handle(line):
-            if isinstance(item, Delay):
-                model.advance(item.seconds)
-            else:
-                out.append(item)
-    except CommandError as exc:
-        out.append(f"ERR {exc.code} {exc.text}")
-    return out
 
 
 def blob_centres(image: np.ndarray, min_area: int = 40) -> np.ndarray:
@@ -168,17 +155,17 @@ def test_same_seed_same_bytes(transport: str) -> None:
 # -- faults -----------------------------------------------------------------------------------------
 def _homed_model(**faults: str) -> FilmScannerModel:
     model = FilmScannerModel(seed=3)
-    run(model, "SIM:FAULT CLEAR")
+    model.execute("SIM:FAULT CLEAR")
     for name, value in faults.items():
-        assert run(model, f"SIM:FAULT {name} {value}") == ["OK"]
+        assert model.execute(f"SIM:FAULT {name} {value}") == ["OK"]
     for cmd in ("CLAMP BASE", "HOME", "CLAMP CARRIER"):
-        assert run(model, cmd)[-1].startswith("OK")
+        assert model.execute(cmd)[-1].startswith("OK")
     return model
 
 
 def _line_positions(model: FilmScannerModel, lines: int = 60) -> np.ndarray:
-    run(model, "HEAD")
-    run(model, f"SCAN {lines}")
+    model.execute("HEAD")
+    model.execute(f"SCAN {lines}")
     return np.array([y for y, _ in model.last_scan])
 
 
@@ -192,35 +179,35 @@ def test_feedjitter_increases_along_feed_scatter() -> None:
 def test_stall_loses_steps_and_backlash_loses_motion() -> None:
     model = _homed_model(STALL="0.2")
     film0 = model.carrier.film_um
-    run(model, "FEED 100")
+    model.execute("FEED 100")
     moved = model.carrier.film_um - film0
     assert 0.7 * 4687.5 < moved < 0.9 * 4687.5            # 20 % of the steps skipped
 
     model = _homed_model(BACKLASH="30")
-    run(model, "FEED 20")
+    model.execute("FEED 20")
     before = model.carrier.film_um
-    run(model, "FEED -20")
+    model.execute("FEED -20")
     assert before - model.carrier.film_um == pytest.approx(20 * 46.875 - 30, abs=1e-6)
 
 
 def test_vibration_and_rail_shift_lines_sideways() -> None:
     model = _homed_model(VIBRATION="20 5")
-    run(model, "HEAD")
-    run(model, "SCAN 40")
+    model.execute("HEAD")
+    model.execute("SCAN 40")
     dx = np.array([d for _, d in model.last_scan])
     assert 0.015 < np.ptp(dx) / 2 <= 0.0201
     model = _homed_model(RAIL="15 2")
-    run(model, "HEAD")
-    run(model, "SCAN 40")
+    model.execute("HEAD")
+    model.execute("SCAN 40")
     assert np.ptp([d for _, d in model.last_scan]) > 0.01
 
 
 def _grey_at_marker(model: FilmScannerModel) -> np.ndarray:
-    run(model, "HEAD")
+    model.execute("HEAD")
     marker = min(model.film.markers[:4], key=lambda m: m.radius_mm)
     target = model.film.frame_top_mm(0) + marker.y_mm
-    run(model, f"FEED {round((target - model.carrier.film_um / 1000) / PIXEL_MM)}")
-    grey = run(model, "GREY?")[0].split(" ")[2:]
+    model.execute(f"FEED {round((target - model.carrier.film_um / 1000) / PIXEL_MM)}")
+    grey = model.execute("GREY?")[0].split(" ")[2:]
     return np.array(grey, dtype=int)
 
 
@@ -230,16 +217,16 @@ def test_defocus_lowers_the_grey_peak_and_illum_darkens_edges() -> None:
     assert sharp.max() > 200
     assert blurred.max() < 0.8 * sharp.max()
     model = _homed_model(ILLUM="0.5")
-    run(model, "FEED 64")                                 # leader -> clear band 0
-    grey = np.array(run(model, "GREY?")[0].split(" ")[2:], dtype=int)
+    model.execute("FEED 64")                                 # leader -> clear band 0
+    grey = np.array(model.execute("GREY?")[0].split(" ")[2:], dtype=int)
     assert grey[:16].mean() < 0.7 * grey[248:264].mean()
 
 
 def test_filmnoise_adds_specks_to_the_background() -> None:
     def white_pixels(**faults: str) -> int:
         model = _homed_model(**faults)
-        run(model, "HEAD")
-        return sum(decode_bits(l.split()[2])[:40].sum() for l in run(model, "SCAN 20")[:-1])
+        model.execute("HEAD")
+        return sum(decode_bits(l.split()[2])[:40].sum() for l in model.execute("SCAN 20")[:-1])
 
     assert white_pixels() == 0
     assert white_pixels(FILMNOISE="0.2") > 5
@@ -247,13 +234,13 @@ def test_filmnoise_adds_specks_to_the_background() -> None:
 
 # -- acceptance (§1.4, §5) --------------------------------------------------------------------------
 def _scan_image(model: FilmScannerModel, lines: int) -> np.ndarray:
-    reply = run(model, f"SCAN {lines}")
+    reply = model.execute(f"SCAN {lines}")
     return np.array([decode_bits(l.split()[2]) for l in reply[:-1]])
 
 
 def test_marker_centres_recovered_without_faults() -> None:
     model = _homed_model()
-    run(model, "HEAD")
+    model.execute("HEAD")
     found = blob_centres(_scan_image(model, 300))
     ys = np.array([y for y, _ in model.last_scan])
     top = model.film.frame_top_mm(0)
@@ -270,13 +257,13 @@ def test_repeatability_of_repeated_scans_with_default_faults() -> None:
     within a factor 1.5. 20 scans here (100 scans measured 0.86 / 2.57 px, see the report)."""
     model = FilmScannerModel(seed=4)
     for cmd in ("CLAMP BASE", "HOME", "CLAMP CARRIER"):
-        run(model, cmd)
+        model.execute(cmd)
     lines = 260
     centres = []
     for _ in range(20):
-        run(model, "HEAD")
+        model.execute("HEAD")
         centres.append(blob_centres(_scan_image(model, lines)))
-        run(model, f"FEED -{lines + 37 + 40}")            # back before the band: scan it again
+        model.execute(f"FEED -{lines + 37 + 40}")            # back before the band: scan it again
     spread = np.ptp(np.array(centres), axis=0).mean(axis=0)
     assert 1 / 1.5 <= spread[0] <= 1.5, spread            # across the sensor, px
     assert 2 / 1.5 <= spread[1] <= 2 * 1.5, spread        # along the feed, px
@@ -284,5 +271,5 @@ def test_repeatability_of_repeated_scans_with_default_faults() -> None:
 
 def test_frame_time_is_modelled() -> None:
     model = _homed_model()
-    run(model, "HEAD")
-    assert run(model, "SCAN 344")[-1] == "OK 344 8605"   # 344 x (512/73 kHz + 18 ms) = 8.6 s
+    model.execute("HEAD")
+    assert model.execute("SCAN 344")[-1] == "OK 344 8605"   # 344 x (512/73 kHz + 18 ms) = 8.6 s

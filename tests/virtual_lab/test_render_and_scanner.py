@@ -8,7 +8,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 from mirrorlab.core import Session
-from mirrorlab.core.devices.simulator import CommandError, Delay
 from mirrorlab.instruments.film_scanner import FilmScannerModel
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
 from mirrorlab.instruments.film_scanner.wire import decode_bits
@@ -63,25 +62,14 @@ def test_frames_are_deterministic_with_a_seed() -> None:
     assert np.unique(clean).size > 2 and clean.min() == 12                           # dark background
 
 
-def _run(model: FilmScannerModel, line: str) -> list[str]:
-    out: list[str] = []
-    try:
-        for item in model.handle(line):
-            if isinstance(item, Delay):
-                model.advance(item.seconds)
-            else:
-                out.append(item)
-    except CommandError as exc:
-        out.append(f"ERR {exc.code} {exc.text}")
-    return out
 
 
 def test_film_of_lab_frames_scanned_by_fscan_shows_the_markers() -> None:
     film = virtual_film("rssr", 3.0, 1)
     model = FilmScannerModel(film, seed=3)
     for cmd in ("SIM:CLOCK FAST", "CLAMP BASE", "HOME", "CLAMP CARRIER", "HEAD"):
-        assert _run(model, cmd)[-1].startswith("OK"), cmd
-    lines = _run(model, "SCAN 344")
+        assert model.execute(cmd)[-1].startswith("OK"), cmd
+    lines = model.execute("SCAN 344")
     image = np.array([decode_bits(line.split()[2]) for line in lines[:-1]], dtype=np.uint8)
     n, _, stats, centres = cv2.connectedComponentsWithStats(image)
     blobs = centres[1:][stats[1:, cv2.CC_STAT_AREA] >= 10]
