@@ -373,8 +373,8 @@ def format_report(r: DemoReport) -> str:
         "  systematic error per axis (mean measured - true):   X         Y         Z",
         f"    this run                                     {sx:+8.3f}  {sy:+8.3f}  {sz:+8.3f} mm",
         f"    thesis (film, 1984)                          {tx:+8.1f}  {ty:+8.1f}  {tz:+8.1f} mm",
-        f"  kinematics, RMS of measured - analytic (accelerations without the first and last {ACCEL_END_FRAMES} "
-        "frame(s): the spline's end condition sets them to 0):",
+        f"  kinematics, RMS of measured - analytic (accelerations without {ACCEL_END_FRAMES} frame(s) at each "
+        "end: the spline's end condition sets them to 0):",
     ]
     for k, unit in (("theta_dot", "rad/s"), ("phi_dot", "rad/s"), ("theta_ddot", "rad/s²"), ("phi_ddot", "rad/s²")):
         if k in r.kinematic_rms:
