@@ -52,7 +52,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--images", metavar="DIR|GLOB", help="chessboard photos (pinhole calibration)")
     src.add_argument("--points", type=Path, metavar="CSV", help="calibration points x,y,plane_x,plane_y (plane map)")
     c.add_argument("--pattern", help="chessboard inner corners COLSxROWS, e.g. 10x7")
-    c.add_argument("--square", type=float, default=1.0, help="chessboard square side [mm] (default 1)")
+    c.add_argument("--square", type=float, help="chessboard square side [mm] (required with --images)")
     c.add_argument("--detector", choices=("classic", "sb"), default="classic", help="corner detector")
     c.add_argument("--camera-center", metavar="X,Y,Z", help="camera centre F1 [mm] (plane map)")
     c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
@@ -168,6 +168,9 @@ def calibrate(args: argparse.Namespace) -> int:
         algorithm = algs["calibrate_pinhole"]
         if not args.pattern:
             raise ValidationError([Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7")])
+        if args.square is None:
+            raise ValidationError([Problem("--square", "required with --images: the chessboard square side in mm, "
+                                                       "e.g. --square 25 (it sets the scale of the calibration)")])
         if args.square <= 0:
             raise ValidationError([Problem("--square", f"must be > 0 mm, got {args.square}")])
         params = _params_for(args, algorithm, [algs["calibrate_plane"]])
@@ -222,6 +225,20 @@ def calibrate(args: argparse.Namespace) -> int:
 
 _VECTOR_OPTIONS = {"mirror_point": "mirror_point", "normal": "normal", "lengths": "lengths", "signs": "signs",
                    "principal_point": "principal_point", "start": "start"}
+
+
+def _option_for(name: str) -> str:
+    """The command-line option(s) that provide the algorithm input ``name``."""
+    if name in _VECTOR_OPTIONS:
+        return f"--{name.replace('_', '-')} V1,V2,...|/DATASET"
+    if name in CAMERA_KEYS:
+        return "--calibration /GROUP or --camera-file FILE.json"
+    return f"--input {name}=/DATASET (or --markers FILE.csv)"
+
+
+def _describe(algorithm: type[Algorithm], name: str) -> str:
+    port = next(p for p in algorithm.inputs if p.name == name)
+    return f"{port.description} [{port.unit}]" if port.unit else port.description
 
 
 def _camera_inputs(args: argparse.Namespace, session: Session | None, algorithm: type[Algorithm]) -> dict[str, Any]:
@@ -283,6 +300,10 @@ def reconstruct(args: argparse.Namespace) -> int:
         if unknown:
             raise ValidationError([Problem(f"inputs.{k}", f"{algorithm.name} takes no input {k!r}; it takes: "
                                            f"{', '.join(sorted(declared))}") for k in unknown])
+        missing = [p.name for p in algorithm.inputs if not p.optional and p.name not in inputs]
+        if missing:
+            raise ValidationError([Problem(name, f"--method {args.method} needs {_describe(algorithm, name)}; "
+                                                 f"pass {_option_for(name)}") for name in missing])
         outputs, where = _run(s, algorithm, inputs, params, not args.no_progress)
     points = outputs["points"]
     if args.out is not None:

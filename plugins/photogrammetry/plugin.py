@@ -536,7 +536,8 @@ class Calibrate(Step):
                   help="calibration algorithm"),
         Parameter("images", str, "", help="folder or glob of chessboard photos (calibrate_pinhole)"),
         Parameter("pattern", str, "", help="chessboard inner corners COLSxROWS, e.g. 10x7"),
-        Parameter("square", float, 1.0, unit="mm", bounds=(0.0, None), help="chessboard square side"),
+        Parameter("square", float, 0.0, unit="mm", bounds=(0.0, None),
+                  help="chessboard square side (required with images: it sets the scale)"),
         Parameter("detector", str, "classic", choices=("classic", "sb"), help="corner detector"),
     )
 
@@ -558,6 +559,9 @@ class Calibrate(Step):
                 parse_pattern(values["pattern"])
             except InvalidArgument as exc:
                 problems.append(Problem(f"{where}.pattern", str(exc), file))
+            if values["square"] <= 0:
+                problems.append(Problem(f"{where}.square", "required with images: the chessboard square side in "
+                                                           "mm, e.g. square = 25", file))
             provided = {"object_points", "image_points", "image_size"}
         inputs, typed, more = algorithm_tables(algorithm, table, where, file, provided)
         values.update(inputs=inputs, parameters=typed)
