@@ -80,13 +80,14 @@ class Objective:
         return Arms(start, d, 1.0 / len2, d / np.sqrt(len2)[..., None])
 
     def _closest(self, x: FloatArray, arms: Arms) -> tuple[FloatArray, NDArray[np.bool_]]:
-        tau = np.einsum("bpi,bpi->bp", x - arms.start, arms.d) * arms.inv_len2
+        rel = x - arms.start
+        tau = (rel * arms.d).sum(-1) * arms.inv_len2
         if self.distance == "segment":
             interior = (tau > 0.0) & (tau < 1.0)
-            tau = np.clip(tau, 0.0, 1.0)
+            tau = np.minimum(np.maximum(tau, 0.0), 1.0)
         else:
             interior = np.ones(tau.shape, bool)
-        return x - arms.start - tau[..., None] * arms.d, interior
+        return rel - tau[..., None] * arms.d, interior
 
     def residuals(self, q: FloatArray, arms: Arms, R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Residuals r (B, P, 3) mm and output node positions (B, N + 1, 3) for angles q (B, dof)."""
@@ -105,5 +106,5 @@ class Objective:
         pos, omega = self.output.kinematics_unchecked(q, R_b, p_b)
         r, interior = self._closest(pos[:, self.node], arms)
         dJ = self.output.position_jacobian(pos, omega, self.node)            # (B, P, 3, dof)
-        along = np.einsum("bpi,bpir->bpr", arms.dhat, dJ) * interior[..., None]
+        along = (arms.dhat[..., None] * dJ).sum(-2) * interior[..., None]
         return r, dJ - arms.dhat[..., None] * along[:, :, None, :], pos
