@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["chain", "correspondence", "objective", "approximate"]
+MODULES = ["chain", "correspondence", "objective", "approximate", "algorithms", "figures"]
 
 
 @pytest.mark.parametrize("name", MODULES)
