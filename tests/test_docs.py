@@ -218,7 +218,8 @@ def test_writing_plugins_shows_the_whole_example_package() -> None:
     shown = {k: v for k, v in doc_files(blocks(REPO / "docs" / "writing-plugins.md")).items()
              if k.startswith("mirrorlab-acme/")}
     actual = {f"mirrorlab-acme/{p.relative_to(package)}": p.read_text()
-              for p in sorted(package.rglob("*")) if p.suffix in (".py", ".toml") and "egg-info" not in str(p)}
+              for p in sorted(package.rglob("*")) if p.suffix in (".py", ".toml")
+              and not {"build", "__pycache__"} & set(p.relative_to(package).parts) and "egg-info" not in str(p)}
     assert sorted(shown) == sorted(actual)
     for name, text in actual.items():
         assert shown[name] == text, f"{name}: the doc's blocks differ from the package file"
