@@ -281,7 +281,8 @@ class Session:
         if served:
             schema.set_json(g, "simulator", sim_options)
         self.events.emit("info", label, "instrument_added",
-                         f"{plugin} {label!r} ready ({'simulated' if simulate else instrument.port})")
+                         f"{plugin} {label!r} ready" + (" (simulated)" if simulate else
+                                                         f" on {instrument.port}" if instrument.port else ""))
         return instrument
 
     def _start_simulator(self, cls: type[Instrument], settings: dict[str, Any], options: dict[str, Any],
