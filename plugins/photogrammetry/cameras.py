@@ -641,7 +641,7 @@ def find_chessboard_corners(
     found = [i for i, r in enumerate(results) if r[0]]
     if not found:
         raise CalibrationError(
-            f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} images; check "
+            f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} image{'s' * (len(items) != 1)}; check "
             "the pattern size (inner corners COLSxROWS, not squares) and the lighting"
         )
     obj = chessboard_object_points(pattern_size, square_size)

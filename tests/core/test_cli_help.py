@@ -86,3 +86,42 @@ def test_toml_error_names_the_file_without_placeholder_key(tmp_path) -> None:
     proc = run_cli("run", str(broken))
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"mirrorlab: error: {broken}: not a TOML recipe: ") and " -: " not in proc.stderr
+
+
+def test_run_help_names_the_real_default_output_folder(tmp_path) -> None:
+    from tests.support import REPO
+
+    assert "out/<recipe>-<UTC time>.h5 in the recipe's folder" in " ".join(run_cli("run", "--help").stdout.split())
+    recipe = tmp_path / "recipes" / "scan.toml"
+    recipe.parent.mkdir()
+    recipe.write_text((REPO / "sessions" / "scan_film.toml").read_text())
+    proc = run_cli("run", str(recipe), "--set", "steps.0.seconds=0.2", "--set", "instruments.scanner.settings.lines=16",
+                   "--no-progress", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert len(list((recipe.parent / "out").glob("scan-*.h5"))) == 1 and not (tmp_path / "sessions").exists()
+
+
+def test_calibrate_error_speaks_cli_and_pluralises(tmp_path) -> None:
+    import cv2
+    import numpy as np
+
+    (tmp_path / "blank").mkdir()
+    cv2.imwrite(str(tmp_path / "blank" / "white.png"), np.full((120, 160), 255, np.uint8))
+    proc = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10x7", "--json", "--no-progress")
+    assert proc.returncode == 1
+    (line,) = proc.stderr.splitlines()
+    assert "no 10x7 chessboard found in 1 image;" in line and "pattern_size" not in line, line
+    bad = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10by7", "--json")
+    assert bad.returncode == 2 and bad.stderr.startswith("mirrorlab: error: --pattern: "), bad.stderr
+
+
+def test_instrument_ready_message_names_no_none(tmp_path) -> None:
+    from mirrorlab.core import Session
+
+    messages: list[str] = []
+    with Session.create(tmp_path / "s.h5") as s:
+        s.events.subscribe(lambda e: messages.append(e.message))
+        s.add_instrument("cam", "film_scanner", settings={"source": "virtual", "scene": "box", "lines": 16})
+        s.add_instrument("sim", "film_scanner", simulate=True, settings={"lines": 16}, simulator={"clock": "FAST"})
+    ready = [m for m in messages if " ready" in m]
+    assert ready[0] == "film_scanner 'cam' ready" and ready[1] == "film_scanner 'sim' ready (simulated)", ready
