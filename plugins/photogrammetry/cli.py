@@ -58,7 +58,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
     c.add_argument("--camera", default="cam", help="camera name (default cam)")
     c.add_argument("--json", action="store_true", help="print the camera as JSON (input of reconstruct --camera-file)")
-    c.add_argument("--no-progress", action="store_true")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_parameter_options(c, algs["calibrate_plane"].parameters, "calibrate_plane parameters")
     add_parameter_options(c, algs["calibrate_pinhole"].parameters, "calibrate_pinhole parameters")
     c.set_defaults(func=calibrate)
@@ -69,12 +69,12 @@ def add(sub: argparse._SubParsersAction) -> None:
                     "or a CSV file (--markers; columns frame,marker,x,y and for the mirror method xv,yv). "
                     "Writes the result into SESSION (with provenance) and/or a points CSV (--out).")
     r.add_argument("session", type=Path, nargs="?", help="session file (created if missing when the data come from CSV)")
-    r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"))
+    r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"), help="reconstruction method")
     r.add_argument("--markers", type=Path, metavar="CSV", help="marker image coordinates (frame,marker,x,y[,xv,yv])")
     r.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
                    help="an algorithm input from a dataset of SESSION (e.g. real_xy=/truth/real_xy)")
     r.add_argument("--calibration", metavar="/GROUP", help="camera from a calibration group of SESSION, e.g. /calibration/cam")
-    r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from `mirrorlab calibrate --json` output")
+    r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from the output of mirrorlab calibrate --json")
     for flag, what in (("--mirror-point", "X,Y,Z point G on the mirror [mm] (mirror)"),
                        ("--normal", "X,Y,Z mirror normal toward the camera (mirror; estimated from the data if absent)"),
                        ("--lengths", "D1,D2,... link lengths [mm] (parallel, central)"),
@@ -84,7 +84,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         r.add_argument(flag, metavar="V1,V2,...|/DATASET", help=what)
     r.add_argument("--out", type=Path, metavar="CSV", help="write points (frame,marker,X,Y,Z,...) to this CSV")
     r.add_argument("--json", action="store_true", help="print a JSON summary")
-    r.add_argument("--no-progress", action="store_true")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
     for method in ("mirror", "parallel", "central"):
         add_parameter_options(r, algs[method].parameters, f"{method} parameters")
     r.set_defaults(func=reconstruct)
@@ -163,11 +163,19 @@ def calibrate(args: argparse.Namespace) -> int:
     extra: dict[str, Any] = {}
     attrs: dict[str, Any] = {}
     if args.images:
-        from .plugin import chessboard_inputs
+        from .errors import InvalidArgument
+        from .plugin import chessboard_inputs, parse_pattern
 
         algorithm = algs["calibrate_pinhole"]
+        if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
+            raise ValidationError([Problem("--images", f"no such folder {args.images!r}; give a folder of chessboard "
+                                                       "photos or a glob such as 'cal/*.png'")])
         if not args.pattern:
             raise ValidationError([Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7")])
+        try:
+            parse_pattern(args.pattern)
+        except InvalidArgument as exc:
+            raise ValidationError([Problem("--pattern", str(exc))]) from None
         if args.square is None:
             raise ValidationError([Problem("--square", "required with --images: the chessboard square side in mm, "
                                                        "e.g. --square 25 (it sets the scale of the calibration)")])

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
 from mirrorlab.core.errors import PluginError, Problem, SessionError
-from mirrorlab.core.steps import Step, algorithm_tables
+from mirrorlab.core.steps import ALGORITHM_TABLES, Step, algorithm_tables
 
 from .camera_arrays import CAMERA_KEYS, camera_from_arrays, camera_kind, pinhole_arrays, plane_arrays
 from .cameras import calibrate_pinhole, find_chessboard_corners, fit_plane_calibration
@@ -530,6 +530,7 @@ class Calibrate(Step):
     name = "calibrate"
     version = "1.0.0"
     description = "calibrate a camera (plane map or pinhole) and store it under /calibration/<camera>"
+    tables = ALGORITHM_TABLES
     parameters = ParameterSet(
         Parameter("camera", str, help="camera name: the result goes to /calibration/<camera>"),
         Parameter("algorithm", str, "calibrate_plane", choices=("calibrate_plane", "calibrate_pinhole"),
@@ -590,6 +591,7 @@ class Reconstruct(Step):
     name = "reconstruct"
     version = "1.0.0"
     description = "reconstruct 3-D markers (parallel, central or mirror) from 2-D marker data of the session"
+    tables = ALGORITHM_TABLES
     parameters = ParameterSet(
         Parameter("method", str, "mirror", choices=("parallel", "central", "mirror"), help="reconstruction method"),
         Parameter("calibration", str, "", help="calibration group giving the camera, e.g. /calibration/cam"),
