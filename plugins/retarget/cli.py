@@ -63,10 +63,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+DESCRIPTION = ("SOURCE is a BVH file (--joints are BVH joint names), a marker file (.c3d, .trc, .tsv; joints are "
+               "marker labels, A+B is their midpoint) or a session (.h5, marker set --dataset). The output chain is "
+               "--lengths (mm) and --axes. Prints a summary (--json), optionally writes a CSV and PNG figures.")
+
+
 def add(subparsers: argparse._SubParsersAction) -> None:
     """Register ``mirrorlab retarget`` and its subcommand ``run``."""
     r = subparsers.add_parser("retarget", help="chain shape approximation (retargeting) of recorded motion",
-                              description=__doc__.split("\n\n")[1].replace("\n", " "))
+                              description=DESCRIPTION)
     sub = r.add_subparsers(dest="retarget_command", metavar="SUBCOMMAND", required=True)
     p = sub.add_parser("run", help="stream a BVH / marker file / session chain through the filter")
     p.add_argument("source", help="motion file (.bvh, .c3d, .trc, .tsv) or session (.h5)")

@@ -103,8 +103,10 @@ CASES = [
     ("record", ["record", "film_scanner", "--port", f"{D}/no-such-port", "--out", f"{D}/rec3.h5",
                 "--no-progress"], 1),
     ("calibrate", ["calibrate", "--points", f"{D}/grid.csv", "--camera-center", ",".join(map(str, F1)), "--json"], 0),
-    ("calibrate", ["calibrate", "--images", f"{D}/no-such-folder", "--pattern", "10x7", "--json"], 2),
-    ("calibrate", ["calibrate", "--images", f"{D}/blank", "--pattern", "10x7", "--json", "--no-progress"], 1),
+    ("calibrate", ["calibrate", "--images", f"{D}/no-such-folder", "--pattern", "10x7", "--square", "25", "--json"], 2),
+    ("calibrate", ["calibrate", "--images", f"{D}/blank", "--pattern", "10x7", "--json"], 2),  # --square missing
+    ("calibrate", ["calibrate", "--images", f"{D}/blank", "--pattern", "10x7", "--square", "25", "--json",
+                   "--no-progress"], 1),
     ("reconstruct", ["reconstruct", "--method", "parallel", "--markers", f"{D}/parallel.csv", "--lengths", "1",
                      "--signs", "1", "--magnification", "1", "--out", f"{D}/p.csv", "--no-progress"], 0),
     ("reconstruct", ["reconstruct", "--method", "parallel", "--markers", f"{D}/parallel.csv",
@@ -114,6 +116,10 @@ CASES = [
     ("kinematics", ["kinematics", "import", str(C3D), "--session", f"{D}/k.h5"], 0),
     ("kinematics", ["kinematics", "import", f"{D}/missing.c3d", "--session", f"{D}/k2.h5"], 2),
     ("kinematics", ["kinematics", "import", f"{D}/garbage.h5", "--session", f"{D}/k3.h5", "--format", "c3d"], 1),
+    ("retarget", ["retarget", "run", str(C3D), "--joints", "ACRO_tip,EPICl+EPICm,STYLr+STYLu", "--lengths", "311,262",
+                  "--axes", "zyx,y", "--json"], 0),
+    ("retarget", ["retarget", "run", f"{D}/missing.bvh", "--joints", "a,b", "--lengths", "1", "--axes", "z"], 2),
+    ("retarget", ["retarget", "run", str(C3D), "--joints", "ACRO_tip,NOPE", "--lengths", "311", "--axes", "zyx"], 1),
 ]
 
 

@@ -107,11 +107,12 @@ def test_calibrate_error_speaks_cli_and_pluralises(tmp_path) -> None:
 
     (tmp_path / "blank").mkdir()
     cv2.imwrite(str(tmp_path / "blank" / "white.png"), np.full((120, 160), 255, np.uint8))
-    proc = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10x7", "--json", "--no-progress")
+    proc = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10x7", "--square", "25", "--json",
+                   "--no-progress")
     assert proc.returncode == 1
     (line,) = proc.stderr.splitlines()
     assert "no 10x7 chessboard found in 1 image;" in line and "pattern_size" not in line, line
-    bad = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10by7", "--json")
+    bad = run_cli("calibrate", "--images", str(tmp_path / "blank"), "--pattern", "10by7", "--square", "25", "--json")
     assert bad.returncode == 2 and bad.stderr.startswith("mirrorlab: error: --pattern: "), bad.stderr
 
 
