@@ -1,0 +1,5 @@
+"""Mechanism analysis: rigid groups, linkage reconstruction, joints and swept areas (``analysis.md`` §3-§7)."""
+
+from .errors import DegenerateGeometry, GroupingError, InvalidPoints, MechanismError
+from .fourbar import LINK_NAMES, FourBar, reconstruct_four_bar, track_markers
+from .grouping import RigidGroups, estimate_tolerance, rigid_groups, thesis_groups
