@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["grouping", "planar", "fourbar", "synthetic"]
+MODULES = ["grouping", "planar", "fourbar", "synthetic", "swept", "walls"]
 
 
 @pytest.mark.parametrize("name", MODULES)
