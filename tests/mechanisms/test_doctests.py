@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["grouping", "planar", "fourbar", "synthetic", "swept", "walls"]
+MODULES = ["grouping", "planar", "fourbar", "synthetic", "swept", "walls", "joints"]
 
 
 @pytest.mark.parametrize("name", MODULES)
