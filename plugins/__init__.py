@@ -17,7 +17,7 @@ from types import ModuleType
 from mirrorlab.core.hookspecs import hookimpl
 
 #: Sub-packages with a ``plugin`` module, in registration order.
-SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline")
+SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "mechanisms")
 
 
 class Adapter:
