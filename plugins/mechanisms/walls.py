@@ -31,7 +31,7 @@ from .errors import DegenerateGeometry, InvalidPoints
 from .swept import strip_area
 
 __all__ = ["ARC_C", "ARC_H", "ArcGrid", "OptimalWall", "THESIS_WALL_NODES", "arc_grid", "arc_wall", "astroid_motion", "centrodes",
-           "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion"]
+           "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion", "wall_objective"]
 
 FloatArray = NDArray[np.float64]
 #: The thesis's wall nodes: y_i = 0.05 i, i = 0..60 (w_0 = w_60 = 0 fixed; 59 variables), l = 3.
@@ -262,6 +262,31 @@ def wall_area(w: ArrayLike, l: float = 3.0, positions: int = 4000, strips: int =
     return strip_area(a, b, strips, path=path)
 
 
+def wall_objective(l: float = 3.0, positions: int = 400, strips: int = 1000,
+                   objective: Literal["exact", "positions"] = "exact") -> Callable[[FloatArray], tuple[float, FloatArray]]:
+    """The optimal-wall objective: inner abscissae (59,) -> (area, gradient (59,)).
+
+    Parameters are those of :func:`optimal_wall`; the gradient is exact for each piece of the
+    piecewise-linear area (the extreme crossing point of each strip moves with two wall nodes).
+
+    Examples
+    --------
+    >>> f = wall_objective(positions=61, strips=3000)
+    >>> area, grad = f(np.zeros(59))
+    >>> round(area, 4), grad.shape
+    (2.6503, (59,))
+    """
+    if objective not in ("exact", "positions"):
+        raise InvalidPoints(f"unknown objective {objective!r}; use 'exact' or 'positions'")
+    g = _Grid.make(l, positions, strips, THESIS_WALL_NODES * (l / 3.0), objective == "exact")
+
+    def f(x: FloatArray) -> tuple[float, FloatArray]:
+        area, grad = g.area_and_gradient(np.concatenate([[0.0], np.asarray(x, float), [0.0]]))
+        return area, grad[1:-1]
+
+    return f
+
+
 # ------------------------------------------------------------------------------------------------
 # arc grid and optimal wall
 # ------------------------------------------------------------------------------------------------
@@ -398,19 +423,15 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
     -------
     OptimalWall
     """
-    if objective not in ("exact", "positions"):
-        raise InvalidPoints(f"unknown objective {objective!r}; use 'exact' or 'positions'")
-    nodes = THESIS_WALL_NODES * (l / 3.0)
-    g = _Grid.make(l, grid[0], grid[1], nodes, objective == "exact")
+    objective_fn = wall_objective(l, grid[0], grid[1], objective)
     calls = 0
 
     def f(x: FloatArray) -> tuple[float, FloatArray]:
         nonlocal calls
         calls += 1
-        area, grad = g.area_and_gradient(np.concatenate([[0.0], x, [0.0]]))
-        return area, grad[1:-1]
+        return objective_fn(x)
 
-    x0 = np.zeros(len(nodes) - 2) if start is None else np.asarray(start, float).ravel()
+    x0 = np.zeros(len(THESIS_WALL_NODES) - 2) if start is None else np.asarray(start, float).ravel()
     t0 = time.perf_counter()
     if method == "lbfgsb":
         res = minimize(f, x0, jac=True, method="L-BFGS-B", options={"maxiter": maxiter, "gtol": gtol, "maxcor": 30})
