@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mirrorlab.instruments.virtual_lab.scenes import FourBarScene
 from mirrorlab.plugins.mechanisms import (
     DegenerateGeometry,
@@ -110,3 +112,16 @@ def test_bad_input_errors() -> None:
     still = np.broadcast_to(points[:1], (5, 9, 2)) + np.arange(5)[:, None, None] * 1e-3
     with pytest.raises((GroupingError, DegenerateGeometry)):
         reconstruct_four_bar(still)
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.floats(-np.pi, np.pi), st.floats(-1000, 1000), st.floats(-1000, 1000), st.booleans(), st.integers(0, 50))
+def test_lengths_invariant_under_rigid_motion_and_mirroring(angle: float, dx: float, dy: float, mirror: bool,
+                                                            seed: int) -> None:
+    points, _ = four_bar_markers(30, noise="none", seed=seed)
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s], [s, c]]) @ (np.diag([1.0, -1.0]) if mirror else np.eye(2))
+    for method in ("least_squares", "thesis"):
+        fb = reconstruct_four_bar(points @ R.T + [dx, dy], method)
+        for k, v in THESIS_FOUR_BAR.items():
+            assert fb.lengths[k] == pytest.approx(v, abs=1e-8), (method, k)
