@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["grouping", "planar", "fourbar", "synthetic", "swept", "walls", "joints"]
+MODULES = ["grouping", "planar", "fourbar", "synthetic", "swept", "walls", "joints", "steps", "figures"]
 
 
 @pytest.mark.parametrize("name", MODULES)
