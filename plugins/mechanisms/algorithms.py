@@ -244,11 +244,13 @@ class SphericalJointAlgorithm(Algorithm):
     inputs = _BODIES
     outputs = (Port("centre", "(T, 3) joint centre", "mm"), Port("local1", "(3,) in body 1's frame", "mm"),
                Port("local2", "(3,) in body 2's frame", "mm"), Port("residual", "(T,) mismatch", "mm"),
-               Port("rms", "() RMS mismatch", "mm"))
+               Port("rms", "() RMS mismatch", "mm"),
+               Port("condition", "() condition number of the fit (large: relative rotation near one axis)"))
 
     def run(self, inputs: Mapping[str, Any], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         j = spherical_joint(_array(inputs, "body1"), _array(inputs, "body2"))
-        return {"centre": j.centre, "local1": j.local1, "local2": j.local2, "residual": j.residual, "rms": j.rms}
+        return {"centre": j.centre, "local1": j.local1, "local2": j.local2, "residual": j.residual, "rms": j.rms,
+                "condition": j.condition}
 
 
 class RevoluteJointAlgorithm(Algorithm):

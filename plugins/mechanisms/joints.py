@@ -71,6 +71,9 @@ class SphericalJoint:
         one available), mm.
     local1, local2 : (3,) the centre in each body's frame (centroid origin), mm.
     residual : (T,) distance between the two bodies' predictions, mm; rms : its RMS.
+    condition : ratio of the largest to the smallest singular value of the stacked system; large
+        when the relative rotation stays close to one axis (the centre is then poorly determined
+        along it, which ``rms`` does not show).
     """
 
     centre: FloatArray
@@ -78,6 +81,7 @@ class SphericalJoint:
     local2: FloatArray
     residual: FloatArray
     rms: float
+    condition: float
 
 
 @dataclass(frozen=True)
@@ -163,7 +167,7 @@ def spherical_joint(body1: ArrayLike, body2: ArrayLike) -> SphericalJoint:
     res = np.linalg.norm(p1 - p2, axis=1)
     with np.errstate(invalid="ignore"):
         centre = np.nanmean(np.stack([p1, p2]), axis=0)          # one body's prediction where the other is unposed
-    return SphericalJoint(centre, c1, c2, res, float(np.sqrt(np.nanmean(res**2))))
+    return SphericalJoint(centre, c1, c2, res, float(np.sqrt(np.nanmean(res**2))), float(sv[0] / sv[-1]))
 
 
 def revolute_joint(body1: ArrayLike, body2: ArrayLike) -> RevoluteJoint:

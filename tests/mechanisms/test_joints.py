@@ -92,3 +92,15 @@ def test_degenerate_and_bad_input() -> None:
         spherical_joint(b["crank"][:, :2], b["coupler"])
     with pytest.raises(InvalidPoints, match="same frames"):
         spherical_joint(b["crank"][:10], b["coupler"])
+
+
+def test_condition_flags_a_nearly_single_axis_relative_rotation() -> None:
+    b = _rssr_bodies()
+    near_hinge = spherical_joint(b["crank"], b["coupler"]).condition
+    R1, R2 = (Rotation.random(20, random_state=k).as_matrix() for k in (1, 2))
+    q = np.array([[50.0, 0, 0], [0, 40, 0], [0, 0, 30], [20, 20, 20]])
+    c = np.array([10.0, 20, 30])
+    t1 = np.zeros((20, 3))
+    t2 = t1 + np.einsum("tij,j->ti", R1, c) - np.einsum("tij,j->ti", R2, c)
+    free = spherical_joint(np.einsum("tij,mj->tmi", R1, q) + t1[:, None], np.einsum("tij,mj->tmi", R2, q) + t2[:, None])
+    assert free.condition < 3 and near_hinge > 10
