@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core.errors import AlgorithmError, Problem
 from mirrorlab.core.params import Parameter, ParameterSet
 from mirrorlab.core.steps import Step
 
@@ -23,6 +23,7 @@ from .synthetic import TABLE_5_1
 from .walls import ARC_C, ARC_H, arc_wall, astroid_motion, centrodes, eq63_motion, wall_motion
 
 if TYPE_CHECKING:
+    from mirrorlab.core.registry import Registry
     from mirrorlab.core.session import ResultData, Session
 
 __all__ = ["STEPS", "FourBarReport", "WallReport", "format_four_bar", "format_walls"]
@@ -72,15 +73,33 @@ class FourBarReport(Step):
     version = "1.0.0"
     description = "print every four_bar run's link lengths and errors next to Table 5.1; PNG of the linkage"
     parameters = ParameterSet(
+        Parameter("instrument", str, "", help="camera whose /truth/<instrument>/analytic/lengths holds the true "
+                                              "lengths (the virtual lab writes it); else true_lengths"),
         Parameter("true_lengths", str, "230, 100, 220, 133",
-                  help="true ground, input, coupler, output lengths (mm; the virtual lab's four-bar)"),
+                  help="true ground, input, coupler, output lengths (mm) when there is no truth in the session"),
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        values, problems = cls.parameters.problems(table, where, file)
+        if not problems and values["instrument"] and values["instrument"] not in instruments:
+            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
+                                    f"it has: {', '.join(instruments) or 'none'}", file))
+        return values, problems
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         from .figures import plot_four_bar
 
-        true_vals = [float(x) for x in values["true_lengths"].split(",")]
+        key = f"truth/{values['instrument']}/analytic/lengths"
+        if values["instrument"]:
+            if key not in session.file:
+                raise AlgorithmError(f"no {key} in {session.path}: is {values['instrument']!r} a virtual-lab four-bar "
+                                     "camera? (or leave instrument empty and give true_lengths)")
+            true_vals = [float(x) for x in session.file[key][0]]
+        else:
+            true_vals = [float(x) for x in values["true_lengths"].split(",")]
         if len(true_vals) != 4:
             raise AlgorithmError(f"true_lengths needs 4 numbers (ground, input, coupler, output), got "
                                  f"{values['true_lengths']!r}")
@@ -93,7 +112,7 @@ class FourBarReport(Step):
             figures.append(plot_four_bar(folder / f"four_bar_{r.ref.run_id}_{method}.png", r.outputs["tracks"],
                                          r.outputs["link"], r.outputs["joints"],
                                          title=f"four-bar ({method}): tracks and reconstructed linkage"))
-        text = format_four_bar(true, runs)
+        text = format_four_bar(true, runs) + (f"\n(true lengths from /{key})" if values["instrument"] else "")
         session.write_group(f"report/four_bar_{len(session.results('four_bar'))}",
                             {"lengths": np.array([x for _, x in runs]), "true": np.array(true_vals)},
                             {"methods": json.dumps([m for m, _ in runs])})

@@ -22,6 +22,12 @@ def test_recipes_validate() -> None:
         assert f"{recipe.name}: ok ({what})" in proc.stdout
 
 
+def test_report_step_names_a_missing_instrument() -> None:
+    proc = run_cli("run", str(FOUR_BAR), "--check", "--set", 'steps.4.instrument="camera9"')
+    assert proc.returncode == 2, proc.stderr
+    assert "four_bar.toml: steps.4.instrument: no instrument 'camera9' in the recipe; it has: fourbar" in proc.stderr
+
+
 @pytest.fixture(scope="module")
 def four_bar_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     out = tmp_path_factory.mktemp("fourbar") / "fb.h5"
@@ -45,7 +51,7 @@ def test_four_bar_recipe_recovers_the_linkage_from_film(four_bar_run: tuple[Path
         assert np.abs(thesis["lengths"][()] / true - 1).max() < 0.15
         assert sorted(np.unique(ls["link"][()]).tolist()) == [0, 1, 2, 3]
         assert ls["rms"][()] < 2.0                                          # mm; the scanner's px is 1.125 mm
-    assert "next to the thesis's Table 5.1" in stdout
+    assert "next to the thesis's Table 5.1" in stdout and "(true lengths from /truth/fourbar/analytic/lengths)" in stdout
     for link in THESIS_FOUR_BAR:
         assert link in stdout
     figures = [Path(line.split("figure: ")[1]) for line in stdout.splitlines() if line.startswith("figure: ")]
