@@ -120,12 +120,11 @@ def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fix
 def plot_walls(path: os.PathLike[str] | str, walls: Mapping[str, tuple[ArrayLike, ArrayLike]],
                title: str = "guiding walls", unit: str = "l units") -> Path:
     """Walls ``x = w(y)`` drawn as curves, labelled by name (e.g. with their areas)."""
-    fig = Figure(figsize=(5.5, 6))
+    fig = Figure(figsize=(6.5, 6))
     ax = fig.add_subplot()
     for name, (x, y) in walls.items():
         ax.plot(np.asarray(x, float), np.asarray(y, float), "-", lw=1.5, label=name)
-    ax.axvline(0.0, color="0.7", lw=0.8)
-    ax.set_aspect("equal")
+    ax.axvline(0.0, color="0.7", lw=0.8)             # x stretched: the walls bulge by about l / 8
     ax.set_xlabel(f"x ({unit})")
     ax.set_ylabel(f"y ({unit})")
     ax.set_title(title)

@@ -184,7 +184,7 @@ class WallReport(Step):
                   f"optimal wall, {runs[-1]['area']:.4f}": (best["w"], best["nodes"])}
         if arc_best is not None:
             curves[f"best arc c = {arc_best[0]:.1f}, h = {arc_best[1]:.1f}"] = (arc_wall(arc_best[0], arc_best[1])(y), y)
-        figures = [plot_walls(folder / "walls.png", curves, title="walls guiding A (l = 3)"),
+        figures = [plot_walls(folder / "walls.png", curves, title="walls guiding A (l = 3; x axis stretched)"),
                    plot_swept(folder / "optimal_wall_swept.png", a, b, swept_region(a, b),
                               title="region swept with the optimal wall", unit="l units"),
                    plot_centrodes(folder / "eq63_centrodes.png", *eq63_motion(3.0, 2.2, n),
