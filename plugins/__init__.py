@@ -17,7 +17,7 @@ from types import ModuleType
 from mirrorlab.core.hookspecs import hookimpl
 
 #: Sub-packages with a ``plugin`` module, in registration order.
-SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "retarget")
+SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "retarget", "mechanisms")
 
 #: CLI sub-commands of the sub-packages: name -> (one-line help, ``"module:function"`` adding the parser).
 #: ``mirrorlab --help`` lists them from here; the module is imported only when the command runs.
@@ -30,6 +30,8 @@ CLI_COMMANDS = {
                    f"{__name__}.kinematics.plugin:add_cli_commands"),
     "retarget": ("chain shape approximation (retargeting) of recorded motion",
                  f"{__name__}.retarget.plugin:add_cli_commands"),
+    "mechanisms": ("linkage reconstruction, swept areas, optimal wall",
+                   f"{__name__}.mechanisms.plugin:add_cli_commands"),
 }
 
 

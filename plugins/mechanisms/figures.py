@@ -1,0 +1,132 @@
+"""PNG figures of mechanism results (matplotlib Agg canvas, no pyplot state).
+
+Each function draws one figure, writes it to ``path`` (parent folders created) and returns the
+path. Every figure has a title, axis labels with units and a legend.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import shapely
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from numpy.typing import ArrayLike
+
+__all__ = ["plot_centrodes", "plot_four_bar", "plot_swept", "plot_walls"]
+
+LINK_COLOURS = {0: ("ground", "0.4"), 1: ("input", "tab:blue"), 2: ("coupler", "tab:orange"), 3: ("output", "tab:green"),
+                -1: ("unassigned", "tab:red")}
+
+
+def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    FigureCanvasAgg(fig)
+    fig.savefig(p, dpi=100)
+    return p
+
+
+def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLike, joints: ArrayLike,
+                  title: str = "reconstructed four-bar", every: int = 5, unit: str = "mm") -> Path:
+    """The tracked markers coloured by link, with the reconstructed linkage drawn every ``every`` frames.
+
+    Parameters
+    ----------
+    tracks : (T, M, 2) marker tracks; link : (M,) link index (0 ground, 1 input, 2 coupler,
+        3 output, -1 none); joints : (T, 4, 2) G1, J1, J2, G2.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> j = np.zeros((3, 4, 2)); j[:, 1] = [1, 1]; j[:, 2] = [3, 2]; j[:, 3] = [4, 0]
+    >>> plot_four_bar(os.path.join(tempfile.mkdtemp(), "f.png"), j, [0, 1, 2, 3], j).stat().st_size > 0
+    True
+    """
+    tr, lk, J = np.asarray(tracks, float), np.asarray(link), np.asarray(joints, float)
+    fig = Figure(figsize=(7, 5.5))
+    ax = fig.add_subplot()
+    for k, (name, colour) in LINK_COLOURS.items():
+        cols = np.flatnonzero(lk == k)
+        if cols.size:
+            ax.plot(tr[:, cols, 0].ravel(), tr[:, cols, 1].ravel(), ".", ms=4, color=colour,
+                    label=f"{name} markers")
+    for n, k in enumerate(range(0, len(J), max(1, every))):
+        ax.plot(J[k, :, 0], J[k, :, 1], "-o", color="k", lw=1.2, ms=3, alpha=0.6,
+                label="reconstructed linkage G1-J1-J2-G2" if n == 0 else None)
+    ax.plot(J[0, [0, 3], 0], J[0, [0, 3], 1], "^", color="k", ms=9, label="ground pivots")
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
+    return _save(fig, path)
+
+
+def plot_swept(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, region: shapely.Geometry | None = None,
+               title: str = "swept region", every: int = 20, unit: str = "mm") -> Path:
+    """Rod positions every ``every`` samples and the swept region (a shapely geometry) filled."""
+    A, B = np.asarray(a, float), np.asarray(b, float)
+    fig = Figure(figsize=(6.5, 5.5))
+    ax = fig.add_subplot()
+    if region is not None:
+        polys = getattr(region, "geoms", [region])
+        for n, poly in enumerate(polys):
+            if poly.geom_type == "Polygon":
+                x, y = poly.exterior.xy
+                ax.fill(x, y, color="tab:orange", alpha=0.35, lw=0,
+                        label=f"swept region, area {region.area:.5g} {unit}²" if n == 0 else None)
+    for n, k in enumerate(range(0, len(A), max(1, every))):
+        ax.plot([A[k, 0], B[k, 0]], [A[k, 1], B[k, 1]], "-", color="tab:blue", lw=0.8,
+                label="rod positions" if n == 0 else None)
+    ax.plot(A[:, 0], A[:, 1], "-", color="k", lw=1.5, label="path of A")
+    ax.plot(B[:, 0], B[:, 1], "--", color="k", lw=1.0, label="path of B")
+    ax.set_aspect("equal")
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
+    return _save(fig, path)
+
+
+def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fixed: ArrayLike, moving: ArrayLike,
+                   title: str = "centrodes", every: int = 40, unit: str = "mm") -> Path:
+    """Fixed centrode with rod positions (left) and the moving centrode in the rod frame (right)."""
+    A, B, F, Mv = (np.asarray(v, float) for v in (a, b, fixed, moving))
+    fig = Figure(figsize=(11, 4.8))
+    ax, bx = fig.subplots(1, 2)
+    for n, k in enumerate(range(0, len(A), max(1, every))):
+        ax.plot([A[k, 0], B[k, 0]], [A[k, 1], B[k, 1]], "-", color="0.6", lw=0.8,
+                label="rod positions" if n == 0 else None)
+    ax.plot(A[:, 0], A[:, 1], "-", color="k", lw=1.5, label="wall (path of A)")
+    ax.plot(F[:, 0], F[:, 1], "-", color="tab:red", lw=1.5, label="fixed centrode")
+    ax.set_title("fixed centrode (world)")
+    bx.plot(Mv[:, 0], Mv[:, 1], "-", color="tab:purple", lw=1.5, label="moving centrode")
+    L = float(np.nanmedian(np.linalg.norm(A - B, axis=1)))
+    bx.plot([0, L], [0, 0], "-o", color="k", lw=2, label="rod B-A")
+    bx.set_title("moving centrode (rod frame: origin B, x along BA)")
+    for axis in (ax, bx):
+        axis.set_aspect("equal")
+        axis.set_xlabel(f"x ({unit})")
+        axis.set_ylabel(f"y ({unit})")
+        axis.legend(fontsize=8, loc="best")
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_walls(path: os.PathLike[str] | str, walls: Mapping[str, tuple[ArrayLike, ArrayLike]],
+               title: str = "guiding walls", unit: str = "l units") -> Path:
+    """Walls ``x = w(y)`` drawn as curves, labelled by name (e.g. with their areas)."""
+    fig = Figure(figsize=(6.5, 6))
+    ax = fig.add_subplot()
+    for name, (x, y) in walls.items():
+        ax.plot(np.asarray(x, float), np.asarray(y, float), "-", lw=1.5, label=name)
+    ax.axvline(0.0, color="0.7", lw=0.8)             # x stretched: the walls bulge by about l / 8
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    ax.set_title(title)
+    ax.legend(fontsize=8, loc="best")
+    return _save(fig, path)
