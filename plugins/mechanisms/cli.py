@@ -133,10 +133,14 @@ def _common(p: argparse.ArgumentParser, source: bool = True) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
+DESCRIPTION = ("Commands run the registered algorithms in memory (nothing is written to a session). Marker SOURCEs "
+               "are .npy files or a dataset of a session file (--dataset /path or @algorithm/output).")
+
+
 def add(subparsers: argparse._SubParsersAction) -> None:
     """Register ``mirrorlab mechanisms`` and its subcommands."""
     m = subparsers.add_parser("mechanisms", help="linkage reconstruction, swept areas, optimal wall",
-                              description=__doc__.split("\n\n")[1].replace("\n", " "))
+                              description=DESCRIPTION)
     sub = m.add_subparsers(dest="mechanisms_command", metavar="SUBCOMMAND", required=True)
 
     p = sub.add_parser("four-bar", help="planar four-bar from unlabeled markers (T, M, 2)")

@@ -116,6 +116,8 @@ CASES = [
     ("kinematics", ["kinematics", "import", str(C3D), "--session", f"{D}/k.h5"], 0),
     ("kinematics", ["kinematics", "import", f"{D}/missing.c3d", "--session", f"{D}/k2.h5"], 2),
     ("kinematics", ["kinematics", "import", f"{D}/garbage.h5", "--session", f"{D}/k3.h5", "--format", "c3d"], 1),
+    ("mechanisms", ["mechanisms", "astroid", "--json"], 0),
+    ("mechanisms", ["mechanisms", "four-bar", f"{D}/missing.npy"], 2),
     ("retarget", ["retarget", "run", str(C3D), "--joints", "ACRO_tip,EPICl+EPICm,STYLr+STYLu", "--lengths", "311,262",
                   "--axes", "zyx,y", "--json"], 0),
     ("retarget", ["retarget", "run", f"{D}/missing.bvh", "--joints", "a,b", "--lengths", "1", "--axes", "z"], 2),
