@@ -16,7 +16,7 @@ WALL = REPO / "sessions" / "optimal_wall.toml"
 
 
 def test_recipes_validate() -> None:
-    for recipe, what in ((FOUR_BAR, "1 instruments, 5 steps"), (WALL, "0 instruments, 4 steps")):
+    for recipe, what in ((FOUR_BAR, "1 instrument, 5 steps"), (WALL, "0 instruments, 4 steps")):
         proc = run_cli("run", str(recipe), "--check")
         assert proc.returncode == 0, proc.stderr
         assert f"{recipe.name}: ok ({what})" in proc.stdout
