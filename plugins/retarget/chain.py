@@ -28,6 +28,8 @@ FloatArray = NDArray[np.float64]
 #: For a rotation about axis ``a``: the two other axes (b, c) in cyclic order, so Rot(a) turns e_b towards e_c.
 _CYCLIC = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+#: Index arrays of the cross product a × b = a[_NEXT] b[_PREV] − a[_PREV] b[_NEXT].
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def rotation(axis: str, angle: ArrayLike) -> FloatArray:
@@ -169,15 +171,23 @@ class Tree:
             raise ChainDefinitionError(f"limits must be ({self.dof}, 2) rad with lower < upper for every angle; "
                                        f"got shape {lim.shape}")
         self.limits = lim
-        # precomputed for kinematics_unchecked: the constant part of each elementary rotation, the
-        # (dof, row, column) indices of its cos/sin entries, and the link loop as plain Python values
-        self._unit = np.zeros((self.dof, 3, 3))
-        self._unit[np.arange(self.dof), self.dof_axis, self.dof_axis] = 1.0
-        bd = np.array([_CYCLIC[int(a)] for a in self.dof_axis], int).reshape(-1, 2)
-        self._rot_index = (np.arange(self.dof), bd[:, 0], bd[:, 1])
+        # Precomputed once, so that the solvers' inner loop (kinematics_unchecked, position_jacobian,
+        # clip), which runs on a few rows per call in streaming, spends no time on set-up: where each
+        # entry of the elementary rotations comes from in the table [cos q, sin q, -sin q, 0, 1]
+        # (dof·9 indices), the link loop as plain Python values, the node each angle turns about.
+        gather = np.full((self.dof, 3, 3), 3 * self.dof)            # 0 unless set below
+        for r, a in enumerate(self.dof_axis.tolist()):
+            b, d = _CYCLIC[a]
+            gather[r, a, a] = 3 * self.dof + 1                     # 1 on the axis
+            gather[r, b, b] = gather[r, d, d] = r                  # cos q_r
+            gather[r, d, b] = self.dof + r                         # sin q_r
+            gather[r, b, d] = 2 * self.dof + r                     # -sin q_r
+        self._gather = gather.reshape(-1)
         self._plan = [(j, int(self.parents[j]), int(self.proximal[j]), float(self.lengths[j]),
                        [(int(r), int(self.dof_axis[r])) for r in np.flatnonzero(self.dof_link == j)])
                       for j in range(N)]
+        self._pivot = self.proximal[self.dof_link]
+        self._has_limits = bool(np.isfinite(self.limits).any())
 
     # -- description ----------------------------------------------------------------------------------
     @property
@@ -190,7 +200,7 @@ class Tree:
 
     @property
     def has_limits(self) -> bool:
-        return bool(np.isfinite(self.limits).any())
+        return self._has_limits
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(lengths={self.lengths.tolist()}, axes={list(self.axes)}, "
@@ -210,25 +220,20 @@ class Tree:
     def kinematics_unchecked(self, q: FloatArray, R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:meth:`kinematics` for q (T, dof) and a validated base (solvers' inner loop: no checks)."""
         T = q.shape[0]
-        E = np.broadcast_to(self._unit, (T,) + self._unit.shape).copy()   # elementary rotations (T, dof, 3, 3)
-        c, s = np.cos(q), np.sin(q)
-        r_, b_, d_ = self._rot_index
-        E[:, r_, b_, b_] = c
-        E[:, r_, d_, d_] = c
-        E[:, r_, d_, b_] = s
-        E[:, r_, b_, d_] = -s
+        s = np.sin(q)
+        table = np.concatenate((np.cos(q), s, -s, np.zeros((T, 1)), np.ones((T, 1))), axis=1)
+        E = table[:, self._gather].reshape(T, self.dof, 3, 3)         # elementary rotations
         pos = np.empty((T, self.n_links + 1, 3))
         pos[:, 0] = p_b
         omega = np.empty((T, self.dof, 3))
         rots: list[FloatArray] = []
-        R_base = np.broadcast_to(R_b, (T, 3, 3))
         for j, parent, prox, length, dofs in self._plan:
-            R = R_base if parent < 0 else rots[parent]
+            R = R_b if parent < 0 else rots[parent]                   # R_b (3, 3) broadcasts over rows
             for r, a in dofs:
-                omega[:, r] = R[:, :, a]
+                omega[:, r] = R[..., :, a]
                 R = R @ E[:, r]
             rots.append(R)
-            pos[:, j + 1] = pos[:, prox] + length * R[:, :, 0]
+            pos[:, j + 1] = pos[:, prox] + length * R[..., :, 0]
         return pos, omega
 
     def forward(self, q: ArrayLike, base: Any = None) -> FloatArray:
@@ -285,11 +290,11 @@ class Tree:
     def position_jacobian(self, pos: FloatArray, omega: FloatArray, nodes: NDArray[np.int64] | None = None) -> FloatArray:
         """(T, K, 3, dof) ``∂J_k/∂q_r`` from the outputs of :meth:`kinematics` (mm/rad), for ``nodes`` (default all)."""
         nodes = np.arange(pos.shape[1]) if nodes is None else nodes
-        centre = pos[:, self.proximal[self.dof_link]]                    # (T, dof, 3)
-        arm = pos[:, nodes, None, :] - centre[:, None, :, :]              # (T, K, dof, 3)
-        w = omega[:, None, :, :]
-        d = w[..., [1, 2, 0]] * arm[..., [2, 0, 1]] - w[..., [2, 0, 1]] * arm[..., [1, 2, 0]]
-        return np.swapaxes(d * self.moves.T[nodes][None, :, :, None], -1, -2)
+        # built directly in the (T, K, 3, dof) layout, so that it reshapes to (T, 3K, dof) without a copy
+        w = np.swapaxes(omega, -1, -2)[:, None]                                    # (T, 1, 3, dof)
+        arm = pos[:, nodes, :, None] - np.swapaxes(pos[:, self._pivot], -1, -2)[:, None]   # (T, K, 3, dof)
+        d = w[:, :, _NEXT] * arm[:, :, _PREV] - w[:, :, _PREV] * arm[:, :, _NEXT]   # ω × arm
+        return d * self.moves.T[nodes][:, None, :]
 
     def clip(self, q: FloatArray) -> FloatArray:
         """Angles clamped to the joint limits (rad)."""
