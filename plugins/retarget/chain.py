@@ -188,6 +188,8 @@ class Tree:
                       for j in range(N)]
         self._pivot = self.proximal[self.dof_link]
         self._has_limits = bool(np.isfinite(self.limits).any())
+        self.unlimited = ~np.isfinite(self.limits).any(axis=1)
+        self._jacobian_plans: dict[bytes, tuple[NDArray[np.int64], NDArray[np.int64]]] = {}
 
     # -- description ----------------------------------------------------------------------------------
     @property
@@ -289,12 +291,31 @@ class Tree:
 
     def position_jacobian(self, pos: FloatArray, omega: FloatArray, nodes: NDArray[np.int64] | None = None) -> FloatArray:
         """(T, K, 3, dof) ``∂J_k/∂q_r`` from the outputs of :meth:`kinematics` (mm/rad), for ``nodes`` (default all)."""
-        nodes = np.arange(pos.shape[1]) if nodes is None else nodes
-        # built directly in the (T, K, 3, dof) layout, so that it reshapes to (T, 3K, dof) without a copy
-        w = np.swapaxes(omega, -1, -2)[:, None]                                    # (T, 1, 3, dof)
-        arm = pos[:, nodes, :, None] - np.swapaxes(pos[:, self._pivot], -1, -2)[:, None]   # (T, K, 3, dof)
-        d = w[:, :, _NEXT] * arm[:, :, _PREV] - w[:, :, _PREV] * arm[:, :, _NEXT]   # ω × arm
-        return d * self.moves.T[nodes][:, None, :]
+        nodes = np.arange(pos.shape[1]) if nodes is None else np.asarray(nodes, np.int64)
+        T = pos.shape[0]
+        pidx, widx = self._jacobian_plan(nodes)
+        G = pos.reshape(T, -1)[:, pidx]                      # (T, 2, 2, K, 3, dof)
+        arm = G[:, :, 0] - G[:, :, 1]                        # J_k − J_pivot(r), components (next, prev)
+        W = omega.reshape(T, -1)[:, widx][:, :, None]        # (T, 2, 1, 3, dof)
+        return W[:, 0] * arm[:, 1] - W[:, 1] * arm[:, 0]     # ω × arm
+
+    def _jacobian_plan(self, nodes: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Flat gather indices of :meth:`position_jacobian` for ``nodes``, built once per node set.
+
+        The Jacobian is built directly in the (T, K, 3, dof) layout (it reshapes to (T, 3K, dof)
+        without a copy) from two gathers: of ``pos`` (components next and prev of J_k and of the
+        angle's pivot; a node that does not move with the angle gathers its pivot twice, so its
+        column is 0) and of ``omega``.
+        """
+        key = nodes.tobytes()
+        if key not in self._jacobian_plans:
+            comp = np.stack([_NEXT, _PREV])[:, :, None]                                  # (2, 3, 1)
+            node = np.where(self.moves.T[nodes], nodes[:, None], self._pivot)            # (K, dof)
+            at_node = 3 * node[:, None, :] + comp[:, None]                              # (2, K, 3, dof)
+            pidx = np.stack([at_node, np.broadcast_to(3 * self._pivot + comp[:, None], at_node.shape)], axis=1)
+            widx = 3 * np.arange(self.dof) + comp                                        # (2, 3, dof)
+            self._jacobian_plans[key] = (pidx, widx)
+        return self._jacobian_plans[key]
 
     def clip(self, q: FloatArray) -> FloatArray:
         """Angles clamped to the joint limits (rad)."""
