@@ -174,7 +174,9 @@ class Tree:
         # Precomputed once, so that the solvers' inner loop (kinematics_unchecked, position_jacobian,
         # clip), which runs on a few rows per call in streaming, spends no time on set-up: where each
         # entry of the elementary rotations comes from in the table [cos q, sin q, -sin q, 0, 1]
-        # (dof·9 indices), the link loop as plain Python values, the node each angle turns about.
+        # (dof·9 indices); for each angle, the angle whose rotation precedes it (-1: the base); flat
+        # indices of each angle's world axis (column a of the rotation after it, the same as before
+        # it) and of each link's x axis in the stacked rotations.
         gather = np.full((self.dof, 3, 3), 3 * self.dof)            # 0 unless set below
         for r, a in enumerate(self.dof_axis.tolist()):
             b, d = _CYCLIC[a]
@@ -183,10 +185,16 @@ class Tree:
             gather[r, d, b] = self.dof + r                         # sin q_r
             gather[r, b, d] = 2 * self.dof + r                     # -sin q_r
         self._gather = gather.reshape(-1)
-        self._plan = [(j, int(self.parents[j]), int(self.proximal[j]), float(self.lengths[j]),
-                       [(int(r), int(self.dof_axis[r])) for r in np.flatnonzero(self.dof_link == j)])
-                      for j in range(N)]
+        last = np.array([np.flatnonzero(self.dof_link == j)[-1] for j in range(N)])
+        first = np.array([np.flatnonzero(self.dof_link == j)[0] for j in range(N)])
+        self._before = [int(last[self.parents[j]]) if r == first[j] and self.parents[j] >= 0 else
+                        (-1 if r == first[j] else r - 1) for r, j in enumerate(self.dof_link.tolist())]
+        self._omega_index = 9 * np.arange(self.dof)[:, None] + 3 * np.arange(3) + self.dof_axis[:, None]
+        self._link_x_index = 9 * last[:, None] + 3 * np.arange(3)
+        self._proximal_list = self.proximal.tolist()
+        self._serial = bool(np.array_equal(self.parents, np.arange(N) - 1))
         self._pivot = self.proximal[self.dof_link]
+        self._lengths_column = self.lengths[:, None]
         self._has_limits = bool(np.isfinite(self.limits).any())
         self.unlimited = ~np.isfinite(self.limits).any(axis=1)
         self._jacobian_plans: dict[bytes, tuple[NDArray[np.int64], NDArray[np.int64]]] = {}
@@ -198,7 +206,7 @@ class Tree:
 
     @property
     def is_serial(self) -> bool:
-        return bool(np.array_equal(self.parents, np.arange(self.n_links) - 1))
+        return self._serial
 
     @property
     def has_limits(self) -> bool:
@@ -225,18 +233,19 @@ class Tree:
         s = np.sin(q)
         table = np.concatenate((np.cos(q), s, -s, np.zeros((T, 1)), np.ones((T, 1))), axis=1)
         E = table[:, self._gather].reshape(T, self.dof, 3, 3)         # elementary rotations
+        rots: list[FloatArray] = []                                     # rotation after each angle
+        for r, before in enumerate(self._before):
+            rots.append((R_b if before < 0 else rots[before]) @ E[:, r])  # R_b (3, 3) broadcasts over rows
+        flat = np.stack(rots, axis=1).reshape(T, -1)
         pos = np.empty((T, self.n_links + 1, 3))
         pos[:, 0] = p_b
-        omega = np.empty((T, self.dof, 3))
-        rots: list[FloatArray] = []
-        for j, parent, prox, length, dofs in self._plan:
-            R = R_b if parent < 0 else rots[parent]                   # R_b (3, 3) broadcasts over rows
-            for r, a in dofs:
-                omega[:, r] = R[..., :, a]
-                R = R @ E[:, r]
-            rots.append(R)
-            pos[:, j + 1] = pos[:, prox] + length * R[..., :, 0]
-        return pos, omega
+        pos[:, 1:] = flat[:, self._link_x_index] * self._lengths_column     # link vectors l_j x_j
+        if self._serial:
+            np.cumsum(pos, axis=1, out=pos)
+        else:
+            for j, prox in enumerate(self._proximal_list):
+                pos[:, j + 1] += pos[:, prox]
+        return pos, flat[:, self._omega_index]
 
     def forward(self, q: ArrayLike, base: Any = None) -> FloatArray:
         """Joint positions for joint angles.

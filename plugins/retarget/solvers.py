@@ -84,12 +84,14 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
     J = obj.jacobian(ev, arms).reshape(B, -1, m)
     lam = np.full(B, 1e-3)
     eye = np.eye(m)
+    stale = True                                         # normal equations to (re)build
     for it in range(1, max_iter + 1):
-        A = np.einsum("bki,bkj->bij", J, J)
-        g = np.einsum("bki,bk->bi", J, r)
-        diag = A.diagonal(axis1=1, axis2=2)
-        scale = diag + 1e-9 * diag.max(axis=1, keepdims=True) + 1e-300
-        step = -np.linalg.solve(A + lam[:, None, None] * scale[:, :, None] * eye, g[..., None])[..., 0]
+        if stale:                                        # not after a rejected step: J, r unchanged
+            A = np.einsum("bki,bkj->bij", J, J)
+            g = np.einsum("bki,bk->bi", J, r)[..., None]
+            diag = A.diagonal(axis1=1, axis2=2)
+            D = (diag + 1e-9 * diag.max(axis=1, keepdims=True) + 1e-300)[:, :, None] * eye   # Marquardt scaling
+        step = -np.linalg.solve(A + lam[:, None, None] * D, g)[..., 0]
         q_new = chain.clip(q + step)
         trial = obj.evaluate(q_new, arms, R_b, p_b)      # the Jacobian only where the step is taken
         accept = trial.f < f
@@ -104,7 +106,9 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
         done = ~accept & (lam > 1e12)                   # no descent direction left: a minimum
         if acc.size:                                    # too small a gain or step ends a row
             done[take] = (gain <= ftol * f[take]) | (moved < xtol) | (f[take] < 1e-30)
+        stale = acc.size > 0
         if done.any():
+            stale = True
             fin = rows[done]
             q_out[fin], f_out[fin], r_out[fin], it_out[fin] = q[done], f[done], r[done], it
             keep = ~done
