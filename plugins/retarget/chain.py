@@ -233,15 +233,15 @@ class Tree:
         s = np.sin(q)
         table = np.concatenate((np.cos(q), s, -s, np.zeros((T, 1)), np.ones((T, 1))), axis=1)
         E = table[:, self._gather].reshape(T, self.dof, 3, 3)         # elementary rotations
-        rots: list[FloatArray] = []                                     # rotation after each angle
-        for r, before in enumerate(self._before):
-            rots.append((R_b if before < 0 else rots[before]) @ E[:, r])  # R_b (3, 3) broadcasts over rows
-        flat = np.stack(rots, axis=1).reshape(T, -1)
+        rots = np.empty((T, self.dof, 3, 3))                             # rotation after each angle
+        for r, before in enumerate(self._before):                         # R_b (3, 3) broadcasts over rows
+            np.matmul(R_b if before < 0 else rots[:, before], E[:, r], out=rots[:, r])
+        flat = rots.reshape(T, -1)
         pos = np.empty((T, self.n_links + 1, 3))
         pos[:, 0] = p_b
         pos[:, 1:] = flat[:, self._link_x_index] * self._lengths_column     # link vectors l_j x_j
         if self._serial:
-            np.cumsum(pos, axis=1, out=pos)
+            np.add.accumulate(pos, axis=1, out=pos)
         else:
             for j, prox in enumerate(self._proximal_list):
                 pos[:, j + 1] += pos[:, prox]

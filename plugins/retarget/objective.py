@@ -101,7 +101,7 @@ class Objective:
 
     def _closest(self, x: FloatArray, arms: Arms) -> tuple[FloatArray, NDArray[np.bool_]]:
         rel = x - arms.start
-        tau = (rel * arms.d).sum(-1) * arms.inv_len2
+        tau = np.add.reduce(rel * arms.d, axis=-1) * arms.inv_len2
         if self.distance == "segment":
             interior = (tau > 0.0) & (tau < 1.0)
             tau = np.minimum(np.maximum(tau, 0.0), 1.0)
@@ -132,7 +132,7 @@ class Objective:
     def jacobian(self, ev: Evaluation, arms: Arms) -> FloatArray:
         """Residual Jacobian (B, P, 3, dof) mm/rad, C-contiguous (reshapes to (B, 3P, dof) as a view)."""
         dJ = self.output.position_jacobian(ev.pos, ev.omega, self.node)      # (B, P, 3, dof)
-        along = (arms.dhat[..., None] * dJ).sum(-2) * ev.interior[..., None]
+        along = np.add.reduce(arms.dhat[..., None] * dJ, axis=-2) * ev.interior[..., None]
         return dJ - arms.dhat[..., None] * along[:, :, None, :]
 
     def residuals_jacobian(self, q: FloatArray, arms: Arms, R_b: FloatArray,

@@ -90,22 +90,22 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
             A = np.einsum("bki,bkj->bij", J, J)
             g = np.einsum("bki,bk->bi", J, r)[..., None]
             diag = A.diagonal(axis1=1, axis2=2)
-            D = (diag + 1e-9 * diag.max(axis=1, keepdims=True) + 1e-300)[:, :, None] * eye   # Marquardt scaling
+            scale = diag + 1e-9 * np.maximum.reduce(diag, axis=1, keepdims=True) + 1e-300   # Marquardt
+            D = scale[:, :, None] * eye
         step = -np.linalg.solve(A + lam[:, None, None] * D, g)[..., 0]
         q_new = chain.clip(q + step)
         trial = obj.evaluate(q_new, arms, R_b, p_b)      # the Jacobian only where the step is taken
         accept = trial.f < f
-        acc = np.flatnonzero(accept)
-        take = slice(None) if acc.size == rows.size else acc   # one row, or all: views, no gathers
-        if acc.size:
-            gain = f[take] - trial.f[take]
-            moved = np.abs(q_new[take] - q[take]).max(axis=1)
-            q[take], f[take], r[take] = q_new[take], trial.f[take], trial.r[take].reshape(acc.size, -1)
-            J[take] = obj.jacobian(trial.take(take), arms.take(take)).reshape(acc.size, -1, m)
+        acc = accept.nonzero()[0]
         lam = np.where(accept, np.maximum(lam / 3.0, 1e-12), lam * 4.0)
         done = ~accept & (lam > 1e12)                   # no descent direction left: a minimum
-        if acc.size:                                    # too small a gain or step ends a row
-            done[take] = (gain <= ftol * f[take]) | (moved < xtol) | (f[take] < 1e-30)
+        if acc.size:
+            take = slice(None) if acc.size == rows.size else acc   # one row, or all: views, no gathers
+            gain = f[take] - trial.f[take]
+            moved = np.maximum.reduce(np.abs(q_new[take] - q[take]), axis=1)
+            q[take], f[take], r[take] = q_new[take], trial.f[take], trial.r[take].reshape(acc.size, -1)
+            J[take] = obj.jacobian(trial.take(take), arms.take(take)).reshape(acc.size, -1, m)
+            done[take] = (gain <= ftol * f[take]) | (moved < xtol) | (f[take] < 1e-30)   # too little progress
         stale = acc.size > 0
         if done.any():
             stale = True
