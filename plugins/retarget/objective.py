@@ -32,7 +32,7 @@ class Arms:
     inv_len2: FloatArray
     dhat: FloatArray
 
-    def take(self, rows: NDArray[np.int64] | NDArray[np.bool_] | slice) -> Arms:
+    def take(self, rows: NDArray[np.int64] | NDArray[np.bool_]) -> Arms:
         """The same arms for a subset (or repetition) of the rows."""
         return Arms(self.start[rows], self.d[rows], self.inv_len2[rows], self.dhat[rows])
 
@@ -51,7 +51,7 @@ class Evaluation(NamedTuple):
     omega: FloatArray
     interior: NDArray[np.bool_]
 
-    def take(self, rows: NDArray[np.int64] | NDArray[np.bool_] | slice) -> Evaluation:
+    def take(self, rows: NDArray[np.int64] | NDArray[np.bool_]) -> Evaluation:
         """The same evaluation for a subset of the rows."""
         return Evaluation(*(a[rows] for a in self))
 

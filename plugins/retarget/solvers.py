@@ -75,7 +75,8 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
     q_out = chain.clip(np.array(q0, float))
     B, m = q_out.shape
     # The rows still iterating, with their state compacted: a finished row is written out and
-    # dropped, so that one row (streaming) runs on whole small arrays without gathers or scatters.
+    # dropped, so that one row (streaming) runs on whole small arrays without gathers or scatters;
+    # the Jacobian and normal equations are only rebuilt after a step is taken.
     rows = np.arange(B)
     q = q_out
     ev = obj.evaluate(q, arms, R_b, p_b)
@@ -96,17 +97,21 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
         q_new = chain.clip(q + step)
         trial = obj.evaluate(q_new, arms, R_b, p_b)      # the Jacobian only where the step is taken
         accept = trial.f < f
-        acc = accept.nonzero()[0]
+        n_acc = np.count_nonzero(accept)
         lam = np.where(accept, np.maximum(lam / 3.0, 1e-12), lam * 4.0)
         done = ~accept & (lam > 1e12)                   # no descent direction left: a minimum
-        if acc.size:
-            take = slice(None) if acc.size == rows.size else acc   # one row, or all: views, no gathers
-            gain = f[take] - trial.f[take]
-            moved = np.maximum.reduce(np.abs(q_new[take] - q[take]), axis=1)
-            q[take], f[take], r[take] = q_new[take], trial.f[take], trial.r[take].reshape(acc.size, -1)
-            J[take] = obj.jacobian(trial.take(take), arms.take(take)).reshape(acc.size, -1, m)
-            done[take] = (gain <= ftol * f[take]) | (moved < xtol) | (f[take] < 1e-30)   # too little progress
-        stale = acc.size > 0
+        if n_acc:
+            gain = np.where(accept, f - trial.f, np.inf)
+            moved = np.where(accept, np.maximum.reduce(np.abs(q_new - q), axis=1), np.inf)
+            if n_acc == rows.size:                      # all rows, as a single streaming row, take the trial
+                q, f, r = q_new, trial.f, trial.r.reshape(n_acc, -1)
+                J = obj.jacobian(trial, arms).reshape(n_acc, -1, m)
+            else:
+                acc = accept.nonzero()[0]
+                q[acc], f[acc], r[acc] = q_new[acc], trial.f[acc], trial.r[acc].reshape(n_acc, -1)
+                J[acc] = obj.jacobian(trial.take(acc), arms.take(acc)).reshape(n_acc, -1, m)
+            done |= (gain <= ftol * f) | (moved < xtol) | (accept & (f < 1e-30))   # too little progress
+        stale = n_acc > 0
         if done.any():
             stale = True
             fin = rows[done]
