@@ -131,6 +131,10 @@ class Tree:
         Node at the proximal end of each link.
     moves : ndarray (dof, N + 1) of bool
         ``moves[r, k]``: node ``k`` moves when angle ``r`` changes.
+    limits : ndarray (dof, 2)
+        Joint limits in rad, fixed at construction (the solvers' clamping is precomputed from them).
+    unlimited : ndarray (dof,) of bool
+        Angles without limits (unwrapped by multiples of 2π between frames).
     """
 
     def __init__(self, lengths: ArrayLike, axes: Sequence[str], parents: Sequence[int], base: Any = None,
