@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from .chain import Tree, as_base
 from .correspondence import correspondence_pairs, serial_parents
 from .errors import InputChainError, RetargetError, TopologyError
-from .objective import Objective
+from .objective import Arms, Objective
 from .solvers import levenberg_marquardt, multistart, paper_sweeps, start_points
 
 __all__ = ["approximate", "Approximation", "Tracker", "InputChain", "input_chain", "METHODS", "unwrap_to"]
@@ -115,8 +115,7 @@ def input_chain(input_joints: ArrayLike, input_parents: ArrayLike | None = None,
 
 def unwrap_to(q: FloatArray, ref: FloatArray, chain: Tree) -> FloatArray:
     """Shift unlimited angles of q by multiples of 2π to lie within π of ``ref`` (rad)."""
-    free = ~np.isfinite(chain.limits).any(axis=1)
-    return np.where(free, q - 2 * np.pi * np.round((q - ref) / (2 * np.pi)), q)
+    return np.where(chain.unlimited, q - 2 * np.pi * np.round((q - ref) / (2 * np.pi)), q)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -158,20 +157,20 @@ class Tracker:
         total = float(objective.output.lengths.sum())
         self.jump_abs = (1e-3 * total) ** 2 if jump_abs is None else float(jump_abs)
 
-    def step(self, q_prev: FloatArray, f_prev: FloatArray, has_prev: NDArray[np.bool_], X: FloatArray,
-             R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_]]:
-        """Solve B rows of one step: angles (B, dof), f (B,), iterations (B,), restarted (B,).
+    def step(self, q_prev: FloatArray, f_prev: FloatArray, has_prev: NDArray[np.bool_], arms: Arms,
+             R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_],
+                                                        FloatArray]:
+        """Solve B rows of one step: angles (B, dof), f (B,), iterations (B,), restarted (B,), residuals (B, P, 3).
 
         ``q_prev`` is the warm start (the previous frame's angles, or the initial angles where
-        ``has_prev`` is False); ``X`` the input positions (B, n_nodes, 3) mm.
+        ``has_prev`` is False); ``arms`` the input arms of the B rows (:meth:`.Objective.arms`).
         """
         obj = self.objective
-        arms = obj.arms(X)
         if self.method == "lm":
             sol = levenberg_marquardt(obj, q_prev, arms, R_b, p_b, max_iter=self.max_iter)
         else:
             sol = paper_sweeps(obj, q_prev, arms, R_b, p_b, sweeps=self.sweeps)
-        q, f, iters = sol.q, sol.f, sol.iterations
+        q, f, iters, res = sol.q, sol.f, sol.iterations, sol.residuals
         restarted = np.zeros(q.shape[0], bool)
         if self.use_multistart:
             restarted = ~has_prev | (f > self.jump_factor * f_prev + self.jump_abs)
@@ -179,10 +178,10 @@ class Tracker:
             if rows.size:
                 ms = multistart(obj, self.starts, arms.take(rows), R_b[rows] if R_b.ndim == 3 else R_b,
                                 p_b[rows] if p_b.ndim == 2 else p_b, extra=q[rows])
-                q[rows], f[rows] = ms.q, ms.f
+                q[rows], f[rows], res[rows] = ms.q, ms.f, ms.residuals
                 iters[rows] += ms.iterations
         ref = np.where(has_prev[:, None], q_prev, 0.0)
-        return unwrap_to(q, ref, obj.output), f, iters, restarted
+        return unwrap_to(q, ref, obj.output), f, iters, restarted, res
 
 
 # ------------------------------------------------------------------------------------------------
@@ -266,7 +265,8 @@ def _track(tracker: Tracker, X: FloatArray, valid: NDArray[np.bool_], R: FloatAr
         if rows.size == 0:
             continue
         fr = frames[rows]
-        qs, fs, its, rss = tracker.step(q[rows], f[rows], has[rows], X[fr], R[fr] if R.ndim == 3 else R, p[fr])
+        qs, fs, its, rss, _ = tracker.step(q[rows], f[rows], has[rows], tracker.objective.arms(X[fr]),
+                                           R[fr] if R.ndim == 3 else R, p[fr])
         q[rows], f[rows], has[rows] = qs, fs, True
         q_out[rows, s], f_out[rows, s], it_out[rows, s], rs_out[rows, s] = qs, fs, its, rss
     return q_out, f_out, it_out, rs_out

@@ -28,6 +28,8 @@ FloatArray = NDArray[np.float64]
 #: For a rotation about axis ``a``: the two other axes (b, c) in cyclic order, so Rot(a) turns e_b towards e_c.
 _CYCLIC = {0: (1, 2), 1: (2, 0), 2: (0, 1)}
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+#: Index arrays of the cross product a × b = a[_NEXT] b[_PREV] − a[_PREV] b[_NEXT].
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 
 def rotation(axis: str, angle: ArrayLike) -> FloatArray:
@@ -129,6 +131,10 @@ class Tree:
         Node at the proximal end of each link.
     moves : ndarray (dof, N + 1) of bool
         ``moves[r, k]``: node ``k`` moves when angle ``r`` changes.
+    limits : ndarray (dof, 2)
+        Joint limits in rad, fixed at construction (the solvers' clamping is precomputed from them).
+    unlimited : ndarray (dof,) of bool
+        Angles without limits (unwrapped by multiples of 2π between frames).
     """
 
     def __init__(self, lengths: ArrayLike, axes: Sequence[str], parents: Sequence[int], base: Any = None,
@@ -169,15 +175,33 @@ class Tree:
             raise ChainDefinitionError(f"limits must be ({self.dof}, 2) rad with lower < upper for every angle; "
                                        f"got shape {lim.shape}")
         self.limits = lim
-        # precomputed for kinematics_unchecked: the constant part of each elementary rotation, the
-        # (dof, row, column) indices of its cos/sin entries, and the link loop as plain Python values
-        self._unit = np.zeros((self.dof, 3, 3))
-        self._unit[np.arange(self.dof), self.dof_axis, self.dof_axis] = 1.0
-        bd = np.array([_CYCLIC[int(a)] for a in self.dof_axis], int).reshape(-1, 2)
-        self._rot_index = (np.arange(self.dof), bd[:, 0], bd[:, 1])
-        self._plan = [(j, int(self.parents[j]), int(self.proximal[j]), float(self.lengths[j]),
-                       [(int(r), int(self.dof_axis[r])) for r in np.flatnonzero(self.dof_link == j)])
-                      for j in range(N)]
+        # Precomputed once, so that the solvers' inner loop (kinematics_unchecked, position_jacobian,
+        # clip), which runs on a few rows per call in streaming, spends no time on set-up: where each
+        # entry of the elementary rotations comes from in the table [cos q, sin q, -sin q, 0, 1]
+        # (dof·9 indices); for each angle, the angle whose rotation precedes it (-1: the base); flat
+        # indices of each angle's world axis (column a of the rotation after it, the same as before
+        # it) and of each link's x axis in the stacked rotations.
+        gather = np.full((self.dof, 3, 3), 3 * self.dof)            # 0 unless set below
+        for r, a in enumerate(self.dof_axis.tolist()):
+            b, d = _CYCLIC[a]
+            gather[r, a, a] = 3 * self.dof + 1                     # 1 on the axis
+            gather[r, b, b] = gather[r, d, d] = r                  # cos q_r
+            gather[r, d, b] = self.dof + r                         # sin q_r
+            gather[r, b, d] = 2 * self.dof + r                     # -sin q_r
+        self._gather = gather.reshape(-1)
+        last = np.array([np.flatnonzero(self.dof_link == j)[-1] for j in range(N)])
+        first = np.array([np.flatnonzero(self.dof_link == j)[0] for j in range(N)])
+        self._before = [int(last[self.parents[j]]) if r == first[j] and self.parents[j] >= 0 else
+                        (-1 if r == first[j] else r - 1) for r, j in enumerate(self.dof_link.tolist())]
+        self._omega_index = 9 * np.arange(self.dof)[:, None] + 3 * np.arange(3) + self.dof_axis[:, None]
+        self._link_x_index = 9 * last[:, None] + 3 * np.arange(3)
+        self._proximal_list = self.proximal.tolist()
+        self._serial = bool(np.array_equal(self.parents, np.arange(N) - 1))
+        self._pivot = self.proximal[self.dof_link]
+        self._lengths_column = self.lengths[:, None]
+        self._has_limits = bool(np.isfinite(self.limits).any())
+        self.unlimited = ~np.isfinite(self.limits).any(axis=1)
+        self._jacobian_plans: dict[bytes, tuple[NDArray[np.int64], NDArray[np.int64]]] = {}
 
     # -- description ----------------------------------------------------------------------------------
     @property
@@ -186,11 +210,11 @@ class Tree:
 
     @property
     def is_serial(self) -> bool:
-        return bool(np.array_equal(self.parents, np.arange(self.n_links) - 1))
+        return self._serial
 
     @property
     def has_limits(self) -> bool:
-        return bool(np.isfinite(self.limits).any())
+        return self._has_limits
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(lengths={self.lengths.tolist()}, axes={list(self.axes)}, "
@@ -210,26 +234,22 @@ class Tree:
     def kinematics_unchecked(self, q: FloatArray, R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:meth:`kinematics` for q (T, dof) and a validated base (solvers' inner loop: no checks)."""
         T = q.shape[0]
-        E = np.broadcast_to(self._unit, (T,) + self._unit.shape).copy()   # elementary rotations (T, dof, 3, 3)
-        c, s = np.cos(q), np.sin(q)
-        r_, b_, d_ = self._rot_index
-        E[:, r_, b_, b_] = c
-        E[:, r_, d_, d_] = c
-        E[:, r_, d_, b_] = s
-        E[:, r_, b_, d_] = -s
+        s = np.sin(q)
+        table = np.concatenate((np.cos(q), s, -s, np.zeros((T, 1)), np.ones((T, 1))), axis=1)
+        E = table[:, self._gather].reshape(T, self.dof, 3, 3)         # elementary rotations
+        rots = np.empty((T, self.dof, 3, 3))                             # rotation after each angle
+        for r, before in enumerate(self._before):                         # R_b (3, 3) broadcasts over rows
+            np.matmul(R_b if before < 0 else rots[:, before], E[:, r], out=rots[:, r])
+        flat = rots.reshape(T, -1)
         pos = np.empty((T, self.n_links + 1, 3))
         pos[:, 0] = p_b
-        omega = np.empty((T, self.dof, 3))
-        rots: list[FloatArray] = []
-        R_base = np.broadcast_to(R_b, (T, 3, 3))
-        for j, parent, prox, length, dofs in self._plan:
-            R = R_base if parent < 0 else rots[parent]
-            for r, a in dofs:
-                omega[:, r] = R[:, :, a]
-                R = R @ E[:, r]
-            rots.append(R)
-            pos[:, j + 1] = pos[:, prox] + length * R[:, :, 0]
-        return pos, omega
+        pos[:, 1:] = flat[:, self._link_x_index] * self._lengths_column     # link vectors l_j x_j
+        if self._serial:
+            np.add.accumulate(pos, axis=1, out=pos)
+        else:
+            for j, prox in enumerate(self._proximal_list):
+                pos[:, j + 1] += pos[:, prox]
+        return pos, flat[:, self._omega_index]
 
     def forward(self, q: ArrayLike, base: Any = None) -> FloatArray:
         """Joint positions for joint angles.
@@ -284,12 +304,31 @@ class Tree:
 
     def position_jacobian(self, pos: FloatArray, omega: FloatArray, nodes: NDArray[np.int64] | None = None) -> FloatArray:
         """(T, K, 3, dof) ``∂J_k/∂q_r`` from the outputs of :meth:`kinematics` (mm/rad), for ``nodes`` (default all)."""
-        nodes = np.arange(pos.shape[1]) if nodes is None else nodes
-        centre = pos[:, self.proximal[self.dof_link]]                    # (T, dof, 3)
-        arm = pos[:, nodes, None, :] - centre[:, None, :, :]              # (T, K, dof, 3)
-        w = omega[:, None, :, :]
-        d = w[..., [1, 2, 0]] * arm[..., [2, 0, 1]] - w[..., [2, 0, 1]] * arm[..., [1, 2, 0]]
-        return np.swapaxes(d * self.moves.T[nodes][None, :, :, None], -1, -2)
+        nodes = np.arange(pos.shape[1]) if nodes is None else np.asarray(nodes, np.int64)
+        T = pos.shape[0]
+        pidx, widx = self._jacobian_plan(nodes)
+        G = pos.reshape(T, -1)[:, pidx]                      # (T, 2, 2, K, 3, dof)
+        arm = G[:, :, 0] - G[:, :, 1]                        # J_k − J_pivot(r), components (next, prev)
+        W = omega.reshape(T, -1)[:, widx][:, :, None]        # (T, 2, 1, 3, dof)
+        return W[:, 0] * arm[:, 1] - W[:, 1] * arm[:, 0]     # ω × arm
+
+    def _jacobian_plan(self, nodes: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Flat gather indices of :meth:`position_jacobian` for ``nodes``, built once per node set.
+
+        The Jacobian is built directly in the (T, K, 3, dof) layout (it reshapes to (T, 3K, dof)
+        without a copy) from two gathers: of ``pos`` (components next and prev of J_k and of the
+        angle's pivot; a node that does not move with the angle gathers its pivot twice, so its
+        column is 0) and of ``omega``.
+        """
+        key = nodes.tobytes()
+        if key not in self._jacobian_plans:
+            comp = np.stack([_NEXT, _PREV])[:, :, None]                                  # (2, 3, 1)
+            node = np.where(self.moves.T[nodes], nodes[:, None], self._pivot)            # (K, dof)
+            at_node = 3 * node[:, None, :] + comp[:, None]                              # (2, K, 3, dof)
+            pidx = np.stack([at_node, np.broadcast_to(3 * self._pivot + comp[:, None], at_node.shape)], axis=1)
+            widx = 3 * np.arange(self.dof) + comp                                        # (2, 3, dof)
+            self._jacobian_plans[key] = (pidx, widx)
+        return self._jacobian_plans[key]
 
     def clip(self, q: FloatArray) -> FloatArray:
         """Angles clamped to the joint limits (rad)."""

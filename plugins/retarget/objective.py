@@ -10,13 +10,14 @@ a batch of B rows (frames, or frames × starts). Units: mm, rad; ``f`` in mm².
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .chain import Tree
 
-__all__ = ["Objective", "Arms", "DISTANCES"]
+__all__ = ["Objective", "Arms", "Evaluation", "DISTANCES"]
 
 FloatArray = NDArray[np.float64]
 DISTANCES = ("segment", "line")
@@ -34,6 +35,25 @@ class Arms:
     def take(self, rows: NDArray[np.int64] | NDArray[np.bool_]) -> Arms:
         """The same arms for a subset (or repetition) of the rows."""
         return Arms(self.start[rows], self.d[rows], self.inv_len2[rows], self.dhat[rows])
+
+
+class Evaluation(NamedTuple):
+    """f at a batch of B angle rows, with what its Jacobian needs (see :meth:`Objective.jacobian`).
+
+    ``r`` residuals (B, P, 3) mm, ``f`` (B,) mm², ``pos`` output node positions (B, N + 1, 3) mm,
+    ``omega`` world axes of the angles (B, dof, 3), ``interior`` (B, P): the closest point lies
+    inside its segment (the Jacobian's projector applies).
+    """
+
+    r: FloatArray
+    f: FloatArray
+    pos: FloatArray
+    omega: FloatArray
+    interior: NDArray[np.bool_]
+
+    def take(self, rows: NDArray[np.int64] | NDArray[np.bool_]) -> Evaluation:
+        """The same evaluation for a subset of the rows."""
+        return Evaluation(*(a[rows] for a in self))
 
 
 class Objective:
@@ -81,7 +101,7 @@ class Objective:
 
     def _closest(self, x: FloatArray, arms: Arms) -> tuple[FloatArray, NDArray[np.bool_]]:
         rel = x - arms.start
-        tau = (rel * arms.d).sum(-1) * arms.inv_len2
+        tau = np.add.reduce(rel * arms.d, axis=-1) * arms.inv_len2
         if self.distance == "segment":
             interior = (tau > 0.0) & (tau < 1.0)
             tau = np.minimum(np.maximum(tau, 0.0), 1.0)
@@ -100,11 +120,23 @@ class Objective:
         r, _ = self.residuals(q, arms, R_b, p_b)
         return np.einsum("bpi,bpi->b", r, r)
 
+    def evaluate(self, q: FloatArray, arms: Arms, R_b: FloatArray, p_b: FloatArray) -> Evaluation:
+        """Residuals and ``f`` at angles q (B, dof), keeping the kinematics for :meth:`jacobian`.
+
+        The solvers call this on trial steps and take the Jacobian only of the steps they accept.
+        """
+        pos, omega = self.output.kinematics_unchecked(q, R_b, p_b)
+        r, interior = self._closest(pos[:, self.node], arms)
+        return Evaluation(r, np.einsum("bpi,bpi->b", r, r), pos, omega, interior)
+
+    def jacobian(self, ev: Evaluation, arms: Arms) -> FloatArray:
+        """Residual Jacobian (B, P, 3, dof) mm/rad, C-contiguous (reshapes to (B, 3P, dof) as a view)."""
+        dJ = self.output.position_jacobian(ev.pos, ev.omega, self.node)      # (B, P, 3, dof)
+        along = np.add.reduce(arms.dhat[..., None] * dJ, axis=-2) * ev.interior[..., None]
+        return dJ - arms.dhat[..., None] * along[:, :, None, :]
+
     def residuals_jacobian(self, q: FloatArray, arms: Arms, R_b: FloatArray,
                            p_b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Residuals (B, P, 3), their Jacobian (B, P, 3, dof) mm/rad and node positions (B, N + 1, 3)."""
-        pos, omega = self.output.kinematics_unchecked(q, R_b, p_b)
-        r, interior = self._closest(pos[:, self.node], arms)
-        dJ = self.output.position_jacobian(pos, omega, self.node)            # (B, P, 3, dof)
-        along = (arms.dhat[..., None] * dJ).sum(-2) * interior[..., None]
-        return r, dJ - arms.dhat[..., None] * along[:, :, None, :], pos
+        ev = self.evaluate(q, arms, R_b, p_b)
+        return ev.r, self.jacobian(ev, arms), ev.pos

@@ -33,11 +33,13 @@ MAX_HALVINGS = 40
 
 @dataclass
 class Solution:
-    """Angles q (B, dof) rad, f (B,) mm² and iterations (LM iterations or sweeps) per row."""
+    """Angles q (B, dof) rad, f (B,) mm², iterations (LM iterations or sweeps) and the residuals
+    (B, P, 3) mm at q, per row."""
 
     q: FloatArray
     f: FloatArray
     iterations: NDArray[np.int64]
+    residuals: FloatArray
 
 
 def _rows(R_b: FloatArray, p_b: FloatArray, rows: NDArray[np.int64]) -> tuple[FloatArray, FloatArray]:
@@ -67,43 +69,62 @@ def levenberg_marquardt(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatAr
     Returns
     -------
     Solution
-        Per row: angles (within the limits), f and the iterations used.
+        Per row: angles (within the limits), f, the iterations used and the residuals.
     """
     chain = obj.output
-    q = chain.clip(np.array(q0, float))
-    B, m = q.shape
-    r, dr, _ = obj.residuals_jacobian(q, arms, R_b, p_b)
-    f = np.einsum("bpi,bpi->b", r, r)
+    q_out = chain.clip(np.array(q0, float))
+    B, m = q_out.shape
+    # The rows still iterating, with their state compacted: a finished row is written out and
+    # dropped, so that one row (streaming) runs on whole small arrays without gathers or scatters;
+    # the Jacobian and normal equations are only rebuilt after a step is taken.
+    rows = np.arange(B)
+    q = q_out
+    ev = obj.evaluate(q, arms, R_b, p_b)
+    r, f = ev.r.reshape(B, -1), ev.f
+    f_out, r_out, it_out = np.empty(B), np.empty_like(r), np.zeros(B, np.int64)
+    J = obj.jacobian(ev, arms).reshape(B, -1, m)
     lam = np.full(B, 1e-3)
-    active = np.ones(B, bool)
-    iters = np.zeros(B, np.int64)
     eye = np.eye(m)
-    for _ in range(max_iter):
-        rows = np.flatnonzero(active)
-        if rows.size == 0:
-            break
-        iters[rows] += 1
-        Jr = dr[rows].reshape(rows.size, -1, m)
-        A = np.einsum("bki,bkj->bij", Jr, Jr)
-        g = np.einsum("bki,bk->bi", Jr, r[rows].reshape(rows.size, -1))
-        diag = np.einsum("bii->bi", A)
-        scale = diag + 1e-9 * diag.max(axis=1, keepdims=True) + 1e-300
-        step = -np.linalg.solve(A + lam[rows, None, None] * scale[:, :, None] * eye, g[..., None])[..., 0]
-        q_new = chain.clip(q[rows] + step)
-        a_rows, Rr, pr = (arms, R_b, p_b) if rows.size == B else (arms.take(rows), *_rows(R_b, p_b, rows))
-        r_new, dr_new, _ = obj.residuals_jacobian(q_new, a_rows, Rr, pr)
-        f_new = np.einsum("bpi,bpi->b", r_new, r_new)
-        accept = f_new < f[rows]
-        acc = rows[accept]
-        gain = f[acc] - f_new[accept]
-        moved = np.abs(q_new[accept] - q[acc]).max(axis=1)
-        q[acc], f[acc], r[acc], dr[acc] = q_new[accept], f_new[accept], r_new[accept], dr_new[accept]
-        lam[acc] = np.maximum(lam[acc] / 3.0, 1e-12)
-        lam[rows[~accept]] *= 4.0
-        done = (gain <= ftol * f[acc]) | (moved < xtol) | (f[acc] < 1e-30)
-        active[acc[done]] = False
-        active[rows[~accept][lam[rows[~accept]] > 1e12]] = False   # no descent direction left: a minimum
-    return Solution(q, f, iters)
+    stale = True                                         # normal equations to (re)build
+    for it in range(1, max_iter + 1):
+        if stale:                                        # not after a rejected step: J, r unchanged
+            A = np.einsum("bki,bkj->bij", J, J)
+            g = np.einsum("bki,bk->bi", J, r)[..., None]
+            diag = A.diagonal(axis1=1, axis2=2)
+            scale = diag + 1e-9 * np.maximum.reduce(diag, axis=1, keepdims=True) + 1e-300   # Marquardt
+            D = scale[:, :, None] * eye
+        step = -np.linalg.solve(A + lam[:, None, None] * D, g)[..., 0]
+        q_new = chain.clip(q + step)
+        trial = obj.evaluate(q_new, arms, R_b, p_b)      # the Jacobian only where the step is taken
+        accept = trial.f < f
+        n_acc = np.count_nonzero(accept)
+        lam = np.where(accept, np.maximum(lam / 3.0, 1e-12), lam * 4.0)
+        done = ~accept & (lam > 1e12)                   # no descent direction left: a minimum
+        if n_acc:
+            gain = np.where(accept, f - trial.f, np.inf)
+            moved = np.where(accept, np.maximum.reduce(np.abs(q_new - q), axis=1), np.inf)
+            if n_acc == rows.size:                      # all rows, as a single streaming row, take the trial
+                q, f, r = q_new, trial.f, trial.r.reshape(n_acc, -1)
+                J = obj.jacobian(trial, arms).reshape(n_acc, -1, m)
+            else:
+                acc = accept.nonzero()[0]
+                q[acc], f[acc], r[acc] = q_new[acc], trial.f[acc], trial.r[acc].reshape(n_acc, -1)
+                J[acc] = obj.jacobian(trial.take(acc), arms.take(acc)).reshape(n_acc, -1, m)
+            done |= (gain <= ftol * f) | (moved < xtol) | (accept & (f < 1e-30))   # too little progress
+        stale = n_acc > 0
+        if done.any():
+            stale = True
+            fin = rows[done]
+            q_out[fin], f_out[fin], r_out[fin], it_out[fin] = q[done], f[done], r[done], it
+            keep = ~done
+            rows, q, f, r, J, lam = rows[keep], q[keep], f[keep], r[keep], J[keep], lam[keep]
+            if rows.size == 0:
+                break
+            arms = arms.take(keep)
+            R_b, p_b = _rows(R_b, p_b, keep)
+    else:
+        q_out[rows], f_out[rows], r_out[rows], it_out[rows] = q, f, r, max_iter
+    return Solution(q_out, f_out, it_out, r_out.reshape(B, -1, 3))
 
 
 def paper_sweeps(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatArray, p_b: FloatArray,
@@ -162,7 +183,7 @@ def paper_sweeps(obj: Objective, q0: FloatArray, arms: Arms, R_b: FloatArray, p_
         q[rows], f[rows] = qr, fr
         if sweeps is None:
             active[rows[(f_start - fr <= ftol * fr) | (fr < 1e-30)]] = False
-    return Solution(q, f, iters)
+    return Solution(q, f, iters, obj.residuals(q, arms, R_b, p_b)[0])
 
 
 def start_points(obj: Objective, n: int, seed: int = 0) -> FloatArray:
@@ -190,5 +211,6 @@ def multistart(obj: Objective, starts: FloatArray, arms: Arms, R_b: FloatArray, 
     sol = levenberg_marquardt(obj, S.reshape(B * n, -1), arms.take(rows), Rr, pr, max_iter=max_iter)
     f = sol.f.reshape(B, n)
     best = np.argmax(f <= f.min(axis=1, keepdims=True) * (1 + 1e-12) + 1e-30, axis=1)
-    q = sol.q.reshape(B, n, -1)[np.arange(B), best]
-    return Solution(q, f[np.arange(B), best], sol.iterations.reshape(B, n).sum(axis=1))
+    pick = (np.arange(B), best)
+    return Solution(sol.q.reshape(B, n, -1)[pick], f[pick], sol.iterations.reshape(B, n).sum(axis=1),
+                    sol.residuals.reshape((B, n) + sol.residuals.shape[1:])[pick])

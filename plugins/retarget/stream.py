@@ -89,6 +89,9 @@ class Compute:
         self.tracker = Tracker(self.objective, method, sweeps if method == "paper" else None, max_iter, use_ms,
                                n_starts, jump_factor, None, seed)
         self.base = None if base is None else as_base(base)
+        # validated once: a fixed base (given or the chain's), else identity on the input's root joint
+        self._fixed_base = self.base if self.base is not None else chain.base
+        self._identity = np.eye(3)
         self.q0 = np.zeros(chain.dof) if q0 is None else np.asarray(q0, float).reshape(chain.dof)
         self.flag_above = flag_above
         self.reset()
@@ -110,11 +113,10 @@ class Compute:
         if not np.isfinite(X).all():
             self.has[:] = False
             return np.full(self.chain.dof, np.nan), float("nan"), np.full(len(self.objective.pairs), np.nan), 0, False
-        R, p = self.base if self.base is not None else (self.chain.base or (np.eye(3), X[0]))
-        q, f, iters, restarted = self.tracker.step(self.q, self.f, self.has, X[None], R, np.asarray(p)[None])
+        R, p = self._fixed_base if self._fixed_base is not None else (self._identity, X[0])
+        q, f, iters, restarted, r = self.tracker.step(self.q, self.f, self.has, self.objective.arms(X[None]), R, p[None])
         self.q, self.f, self.has = q, f, np.ones(1, bool)
-        r, _ = self.objective.residuals(q, self.objective.arms(X[None]), R, np.asarray(p)[None])
-        return q[0].copy(), float(f[0]), np.linalg.norm(r[0], axis=-1), int(iters[0]), bool(restarted[0])
+        return q[0].copy(), float(f[0]), np.sqrt((r[0] * r[0]).sum(-1)), int(iters[0]), bool(restarted[0])
 
 
 # ------------------------------------------------------------------------------------------------
