@@ -8,6 +8,7 @@ Public API::
 from .algorithms import Algorithm, Port, ResultRef, RunContext
 from .errors import (
     AlgorithmError,
+    DamagedFileError,
     DeviceDisconnected,
     DeviceError,
     DeviceReplyError,
@@ -27,7 +28,7 @@ from .session import Session
 from .streams import StreamSpec
 
 __all__ = [
-    "Algorithm", "AlgorithmError", "DeviceDisconnected", "DeviceError", "DeviceReplyError", "DeviceTimeout",
+    "Algorithm", "AlgorithmError", "DamagedFileError", "DeviceDisconnected", "DeviceError", "DeviceReplyError", "DeviceTimeout",
     "DuplicateNameError", "MirrorlabError", "Parameter", "ParameterSet", "PluginError", "Port", "Problem",
     "ProtocolError", "ResultRef", "RunContext", "Session", "SessionError", "StreamSpec", "ValidationError",
     "get_registry", "hookimpl",

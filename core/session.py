@@ -138,9 +138,8 @@ class Session:
         path = Path(path)
         if path.exists() and not overwrite:
             raise SessionError(f"{path} already exists; choose another --out or pass overwrite=True")
-        path.parent.mkdir(parents=True, exist_ok=True)
         registry = registry or get_registry()
-        f = h5py.File(path, "w", libver=LIBVER)
+        f = files.open_writable(path, "w")
         f.attrs.update({
             "mirrorlab_schema": schema.SCHEMA_VERSION,
             "mirrorlab_version": mirrorlab_version(),
@@ -169,7 +168,13 @@ class Session:
         path = Path(path)
         registry = registry or get_registry()
         f, crashed = files.open_readonly(path)
-        if "mirrorlab_schema" not in f.attrs:
+        try:
+            with files.reading(path):
+                is_session = "mirrorlab_schema" in f.attrs
+        except SessionError:
+            f.close()
+            raise
+        if not is_session:
             f.close()
             raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
         if writable:
@@ -177,7 +182,7 @@ class Session:
             if crashed:
                 raise SessionError(f"{path} was left open by a recording that did not finish; run "
                                    f"`mirrorlab session close {path} --aborted` before writing to it")
-            f = h5py.File(path, "a", libver=LIBVER)
+            f = files.open_writable(path)
         return cls(path, f, writable, registry, crashed)
 
     @staticmethod
@@ -548,10 +553,10 @@ class Session:
     def results(self, algorithm: str | None = None) -> list[ResultRef]:
         """Stored runs, oldest first (of one algorithm, or all)."""
         out = []
-        for name, group in self.file.get("results", {}).items():
+        for name, group in files.members(self.file, "results"):
             if algorithm is not None and name != algorithm:
                 continue
-            for run_id, g in group.items():
+            for run_id, g in files.members(group):
                 out.append(ResultRef(name, run_id, schema.attr_str(g, "status"), schema.attr_str(g, "error")))
         return out
 
@@ -586,9 +591,9 @@ class Session:
     def describe(self) -> dict[str, Any]:
         """JSON-ready summary: attributes, instruments with their streams, results, log size."""
         instruments = {}
-        for label, g in self.file.get("instruments", {}).items():
+        for label, g in files.members(self.file, "instruments"):
             streams = {}
-            for name, sg in g.items():
+            for name, sg in files.members(g):
                 if isinstance(sg, h5py.Group) and "data" in sg:
                     streams[name] = {"samples": int(min(sg["data"].shape[0], sg["time"].shape[0])),
                                      "shape": list(sg["data"].shape[1:]), "dtype": str(sg["data"].dtype),

@@ -51,7 +51,7 @@ def new(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
-    with Session.open(args.file) as s:
+    with files.reading(args.file), Session.open(args.file) as s:
         data = s.describe()
     if args.json:
         print(json.dumps(data, indent=2, default=str))
@@ -76,7 +76,7 @@ def info(args: argparse.Namespace) -> int:
 def tree(args: argparse.Namespace) -> int:
     f, _ = files.open_readonly(args.file)
     items = []
-    with f:
+    with f, files.reading(args.file):
         def visit(name: str, obj: h5py.HLObject) -> None:
             entry = {"path": "/" + name, "type": "group" if isinstance(obj, h5py.Group) else "dataset",
                      "attrs": sorted(obj.attrs)}
@@ -114,14 +114,18 @@ def close(args: argparse.Namespace) -> int:
     if report.status in ("closed", "aborted") and not report.open_for_write:
         print(f"{args.file} is already {report.status}")
         return 0 if report.status == status else 1
-    files.mark_status(args.file, status)
+    if report.schema is None or report.status != "open":
+        raise SessionError(f"{args.file} is not a mirrorlab session that can be closed ({'; '.join(report.problems)}); "
+                           "it is left as it is")
+    with files.reading(args.file):
+        files.mark_status(args.file, status)
     repaired = " (repaired the crash-flagged file first)" if report.open_for_write else ""
     print(f"{args.file}: status set to {status}{repaired}")
     return 0
 
 
 def export(args: argparse.Namespace) -> int:
-    with Session.open(args.file) as s:
+    with files.reading(args.file), Session.open(args.file) as s:
         if args.dataset.startswith("/"):
             if args.dataset.strip("/") not in s.file or not isinstance(s.file[args.dataset], h5py.Dataset):
                 raise SessionError(f"no dataset {args.dataset} in {args.file}; `mirrorlab session tree` lists them")
