@@ -223,7 +223,8 @@ class CheckReport:
 
     @property
     def complete(self) -> bool:
-        return self.status in ("closed", "aborted") and not self.open_for_write and not self.problems
+        """Closed normally: not aborted, not open or flagged open for write, no problems found."""
+        return self.status == "closed" and not self.open_for_write and not self.problems
 
     def as_dict(self) -> dict[str, Any]:
         return {"path": self.path, "status": self.status, "schema": self.schema,
@@ -246,6 +247,9 @@ def check(path: str | Path) -> CheckReport:
         if report.status not in STATUSES:
             report.problems.append(f"status {report.status!r} is none of {', '.join(STATUSES)} "
                                    "(a damaged file, or not written by mirrorlab)")
+        if report.status == "aborted":
+            report.problems.append("status is 'aborted': the recording did not finish as planned "
+                                   "(everything recorded up to its end is kept)")
         if report.status == "open":
             if report.writer:
                 report.problems.append(f"status is 'open': it is being recorded right now by {report.writer}")
