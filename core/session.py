@@ -602,9 +602,27 @@ class Session:
                                   "settings": schema.get_json(g, "settings", {}),
                                   "identity": schema.get_json(g, "identity", {}), "streams": streams}
         return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed,
-                "instruments": instruments,
+                "writer": files.live_writer(self.path) if self.crashed else None,
+                "instruments": instruments, "groups": self._other_groups(),
                 "results": [{"path": r.path, "status": r.status, "error": r.error} for r in self.results()],
                 "log_events": int(self.file["log"].shape[0]) if "log" in self.file else 0}
+
+    def _other_groups(self) -> dict[str, dict[str, Any]]:
+        """What sits outside config, instruments, results and log (/calibration, /truth, /report,
+        /markers...): a top-level group that holds datasets, else each of its groups, with their
+        numbers of datasets and groups and their ``description``."""
+        summary = {}
+        for name, top in files.members(self.file):
+            if name in ("config", "instruments", "results") or not isinstance(top, h5py.Group):
+                continue
+            children = files.members(top)
+            holds_data = any(isinstance(obj, h5py.Dataset) for _, obj in children)
+            parts = [(f"/{name}", top)] if holds_data else [(f"/{name}/{k}", g) for k, g in children]
+            for path, g in parts:
+                kinds = [isinstance(obj, h5py.Group) for _, obj in files.members(g)]
+                summary[path] = {"datasets": kinds.count(False), "groups": kinds.count(True),
+                                 "description": schema.attr_str(g, "description")}
+        return summary
 
     def log(self) -> list[dict[str, Any]]:
         """The stored structured events."""
