@@ -145,7 +145,7 @@ def export(args: argparse.Namespace) -> int:
             inst, _, stream = args.dataset.partition("/")
             times, data = s.stream(inst, stream)
             g = s.file[f"instruments/{inst}/{stream}"]
-            columns = [f"time [{schema.attr_str(g, 'time_unit', 's')}]", *column_names(g["data"])]
+            columns = [f"time_{schema.attr_str(g, 'time_unit', 's')}", *column_names(g["data"])]
     if args.format == "npy":
         if not args.out:
             raise SessionError("--format npy needs --out FILE")
@@ -172,14 +172,14 @@ def column_names(ds: h5py.Dataset) -> list[str]:
 
     The name is the stream's (for ``<stream>/data``) or the dataset's, with the sample index
     (``xy_3_1``) or, for the first sample axis, the names a ``labels`` attribute of the dataset or
-    its group declares (``points_S_A_0``); the unit (``unit``/``units`` of the dataset, or the
-    stream's ``unit``) follows in brackets: ``temperature [K]``.
+    its group declares (``points_S_A_0``); then the unit (``unit``/``units`` of the dataset, or
+    the stream's ``unit``), as in the kinematics CSV files: ``temperature_K``.
     """
     group = ds.parent
     stream = ds.name.rsplit("/", 1)[-1] == "data" and "time" in group
     name = group.name.rsplit("/", 1)[-1] if stream else ds.name.rsplit("/", 1)[-1]
     unit = schema.attr_str(ds, "unit") or schema.attr_str(ds, "units") or (schema.attr_str(group, "unit") if stream else "")
-    suffix = f" [{unit}]" if unit else ""
+    suffix = f"_{unit}" if unit else ""
     shape = ds.shape[1:]
     if not shape:
         return [name + suffix]

@@ -71,7 +71,7 @@ def test_info_shows_units_only_when_declared_and_every_group(scanned: Path) -> N
 
 def test_export_names_columns_with_units(scanned: Path, tmp_path: Path, acme_site: Path) -> None:
     rows = list(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "cam/frame_index").stdout)))
-    assert rows[0] == ["time [s]", "frame_index"]
+    assert rows[0] == ["time_s", "frame_index"]
     header = next(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "/truth/cam/markers/points").stdout)))
     assert header[:4] == ["points_S_A_0", "points_S_A_1", "points_S_A_2", "points_S_C_0"] and len(header) == 6
     header = next(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "/report/pairs").stdout)))
