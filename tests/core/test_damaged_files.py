@@ -75,7 +75,7 @@ def flip_bit(data: bytes, offset: int, bit: int) -> bytes:
 
 
 def root_header_offset(data: bytes) -> int:
-    """Byte offset of the root group's object header (superblock v2/v3: after 4 addresses)."""
+    """Byte offset of the root group's object header (superblock v2/v3: its 4th address, at byte 36)."""
     assert data[:8] == b"\x89HDF\r\n\x1a\n" and data[8] in (2, 3) and data[9] == 8, data[:12]
     return struct.unpack_from("<Q", data, 36)[0]
 
