@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from .errors import (
     AlgorithmError,
     AlgorithmInputError,
+    DamagedFileError,
     DeviceDisconnected,
     DeviceError,
     DeviceReplyError,
@@ -43,8 +44,8 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "Session": "session", "StreamSpec": "streams"}
 
 __all__ = [
-    "Algorithm", "AlgorithmError", "AlgorithmInputError", "DeviceDisconnected", "DeviceError", "DeviceReplyError",
-    "DeviceTimeout",
+    "Algorithm", "AlgorithmError", "AlgorithmInputError", "DamagedFileError", "DeviceDisconnected", "DeviceError",
+    "DeviceReplyError", "DeviceTimeout",
     "DuplicateNameError", "MirrorlabError", "Parameter", "ParameterSet", "PluginError", "Port", "Problem",
     "ProtocolError", "ResultRef", "RunContext", "Session", "SessionError", "StreamSpec", "ValidationError",
     "get_registry", "hookimpl",

@@ -53,6 +53,10 @@ class SessionError(MirrorlabError):
     """A session file is missing, of the wrong schema, read-only, or in the wrong state."""
 
 
+class DamagedFileError(SessionError):
+    """A session file is truncated, bit-damaged or not HDF5 at all: HDF5 cannot read it."""
+
+
 class AlgorithmError(MirrorlabError):
     """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
 

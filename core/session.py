@@ -128,9 +128,8 @@ class Session:
         path = Path(path)
         if path.exists() and not overwrite:
             raise SessionError(f"{path} already exists; choose another --out or pass overwrite=True")
-        path.parent.mkdir(parents=True, exist_ok=True)
         registry = registry or get_registry()
-        f = h5py.File(path, "w", libver=LIBVER)
+        f = files.open_writable(path, "w")
         f.attrs.update({
             "mirrorlab_schema": schema.SCHEMA_VERSION,
             "mirrorlab_version": mirrorlab_version(),
@@ -159,7 +158,13 @@ class Session:
         path = Path(path)
         registry = registry or get_registry()
         f, crashed = files.open_readonly(path)
-        if "mirrorlab_schema" not in f.attrs:
+        try:
+            with files.reading(path):
+                is_session = "mirrorlab_schema" in f.attrs
+        except SessionError:
+            f.close()
+            raise
+        if not is_session:
             f.close()
             raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
         if writable:
@@ -167,7 +172,7 @@ class Session:
             if crashed:
                 raise SessionError(f"{path} was left open by a recording that did not finish; run "
                                    f"`mirrorlab session close {path} --aborted` before writing to it")
-            f = h5py.File(path, "a", libver=LIBVER)
+            f = files.open_writable(path)
         return cls(path, f, writable, registry, crashed)
 
     @staticmethod
@@ -539,10 +544,10 @@ class Session:
     def results(self, algorithm: str | None = None) -> list[ResultRef]:
         """Stored runs, oldest first (of one algorithm, or all)."""
         out = []
-        for name, group in self.file.get("results", {}).items():
+        for name, group in files.members(self.file, "results"):
             if algorithm is not None and name != algorithm:
                 continue
-            for run_id, g in group.items():
+            for run_id, g in files.members(group):
                 out.append(ResultRef(name, run_id, schema.attr_str(g, "status"), schema.attr_str(g, "error")))
         return out
 
@@ -577,9 +582,9 @@ class Session:
     def describe(self) -> dict[str, Any]:
         """JSON-ready summary: attributes, instruments with their streams, results, log size."""
         instruments = {}
-        for label, g in self.file.get("instruments", {}).items():
+        for label, g in files.members(self.file, "instruments"):
             streams = {}
-            for name, sg in g.items():
+            for name, sg in files.members(g):
                 if isinstance(sg, h5py.Group) and "data" in sg:
                     streams[name] = {"samples": int(min(sg["data"].shape[0], sg["time"].shape[0])),
                                      "shape": list(sg["data"].shape[1:]), "dtype": str(sg["data"].dtype),
@@ -588,9 +593,27 @@ class Session:
                                   "settings": schema.get_json(g, "settings", {}),
                                   "identity": schema.get_json(g, "identity", {}), "streams": streams}
         return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed,
-                "instruments": instruments,
+                "writer": files.live_writer(self.path) if self.crashed else None,
+                "instruments": instruments, "groups": self._other_groups(),
                 "results": [{"path": r.path, "status": r.status, "error": r.error} for r in self.results()],
                 "log_events": int(self.file["log"].shape[0]) if "log" in self.file else 0}
+
+    def _other_groups(self) -> dict[str, dict[str, Any]]:
+        """What sits outside config, instruments, results and log (/calibration, /truth, /report,
+        /markers...): a top-level group that holds datasets, else each of its groups, with their
+        numbers of datasets and groups and their ``description``."""
+        summary = {}
+        for name, top in files.members(self.file):
+            if name in ("config", "instruments", "results") or not isinstance(top, h5py.Group):
+                continue
+            children = files.members(top)
+            holds_data = any(isinstance(obj, h5py.Dataset) for _, obj in children)
+            parts = [(f"/{name}", top)] if holds_data else [(f"/{name}/{k}", g) for k, g in children]
+            for path, g in parts:
+                kinds = [isinstance(obj, h5py.Group) for _, obj in files.members(g)]
+                summary[path] = {"datasets": kinds.count(False), "groups": kinds.count(True),
+                                 "description": schema.attr_str(g, "description")}
+        return summary
 
     def log(self) -> list[dict[str, Any]]:
         """The stored structured events."""

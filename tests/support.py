@@ -28,3 +28,24 @@ def run_cli(*args: str, sites: tuple[Path, ...] = (), cwd: Path | None = None,
         env["PYTHONPATH"] = os.pathsep.join([*map(str, sites), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     return subprocess.run([sys.executable, "-m", "mirrorlab.core.cli", *args], capture_output=True, text=True,
                           env=env, cwd=cwd or REPO, timeout=timeout)
+
+
+SMALL_SESSION = """
+import sys
+from mirrorlab.core import Session
+with Session.create(sys.argv[1], operator="ana", description="small session for file tests") as s:
+    s.add_instrument("thermo", "acme_thermometer", simulate=True, settings={"rate": 100})
+    s.record(0.3)
+    s.run("acme_drift_rate", {"time": "/instruments/thermo/temperature/time",
+                              "values": "/instruments/thermo/temperature/data"})
+    s.write_group("calibration/thermo", {"offset": 0.25}, {"description": "sensor offset, K"})
+    s.write_group("truth/thermo", {"drift": 5.0, "start": [293.0, 0.1]}, {"source": "simulator"})
+"""
+
+
+def make_small_session(path: Path, acme_site: Path) -> Path:
+    """A small closed session like the demo's: a recording (thermo/temperature in K), one result
+    run, /calibration and /truth groups and a log; made in a subprocess with the acme plugin."""
+    env = {**os.environ, "PYTHONPATH": str(acme_site)}
+    subprocess.run([sys.executable, "-c", SMALL_SESSION, str(path)], check=True, env=env, timeout=120)
+    return path

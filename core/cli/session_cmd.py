@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import json
 import sys
 from pathlib import Path
@@ -13,7 +14,7 @@ import numpy as np
 
 from ..errors import Problem, SessionError, ValidationError
 from ..session import Session
-from ..store import files
+from ..store import files, schema
 from .options import existing_path
 
 
@@ -52,14 +53,17 @@ def new(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
-    with Session.open(args.file) as s:
+    with files.reading(args.file), Session.open(args.file) as s:
         data = s.describe()
     if args.json:
         print(json.dumps(data, indent=2, default=str))
         return 0
     a = data["attributes"]
-    print(f"{data['path']}: session {a.get('session_id')} [{a.get('status')}]"
-          + ("  (left open by a crash: read through SWMR)" if data["crashed"] else ""))
+    if data["writer"]:
+        state = f"  (being recorded right now by {data['writer']}: read through SWMR)"
+    else:
+        state = "  (left open by a crash: read through SWMR)" if data["crashed"] else ""
+    print(f"{data['path']}: session {a.get('session_id')} [{a.get('status')}]{state}")
     for key in ("created_utc", "operator", "description", "mirrorlab_version", "mirrorlab_schema"):
         print(f"  {key}: {a.get(key)}")
     for label, inst in data["instruments"].items():
@@ -67,9 +71,15 @@ def info(args: argparse.Namespace) -> int:
         print(f"  instrument {label}: {inst['plugin']} {inst['version']}"
               + (f" — {ident.get('kind')} {ident.get('model')} fw {ident.get('firmware')}" if ident else ""))
         for name, st in inst["streams"].items():
-            print(f"    {name}: {st['samples']} x {st['shape']} {st['dtype']} [{st['unit']}]")
+            sample = "×".join(map(str, st["shape"])) + " " if st["shape"] else ""
+            unit = f" [{st['unit']}]" if st["unit"] else ""
+            n = st["samples"]
+            print(f"    {name}: {n} sample{'' if n == 1 else 's'} of {sample}{st['dtype']}{unit}")
+    for path, g in data["groups"].items():
+        counts = [f"{g[k]} {k if g[k] != 1 else k[:-1]}" for k in ("datasets", "groups") if g[k]]
+        print(f"  {path}: {', '.join(counts) or 'empty'}" + (f" ({g['description']})" if g["description"] else ""))
     for r in data["results"]:
-        print(f"  result {r['path']}: {r['status']} {r['error']}")
+        print(f"  result {r['path']}: {r['status']}" + (f" — {r['error']}" if r["error"] else ""))
     print(f"  log: {data['log_events']} events")
     return 0
 
@@ -77,7 +87,7 @@ def info(args: argparse.Namespace) -> int:
 def tree(args: argparse.Namespace) -> int:
     f, _ = files.open_readonly(args.file)
     items = []
-    with f:
+    with f, files.reading(args.file):
         def visit(name: str, obj: h5py.HLObject) -> None:
             entry = {"path": "/" + name, "type": "group" if isinstance(obj, h5py.Group) else "dataset",
                      "attrs": sorted(obj.attrs)}
@@ -115,38 +125,76 @@ def close(args: argparse.Namespace) -> int:
     if report.status in ("closed", "aborted") and not report.open_for_write:
         print(f"{args.file} is already {report.status}")
         return 0 if report.status == status else 1
-    files.mark_status(args.file, status)
+    if report.schema is None or report.status != "open":
+        raise SessionError(f"{args.file} is not a mirrorlab session that can be closed ({'; '.join(report.problems)}); "
+                           "it is left as it is")
+    with files.reading(args.file):
+        files.mark_status(args.file, status)
     repaired = " (repaired the crash-flagged file first)" if report.open_for_write else ""
     print(f"{args.file}: status set to {status}{repaired}")
     return 0
 
 
 def export(args: argparse.Namespace) -> int:
-    with Session.open(args.file) as s:
+    with files.reading(args.file), Session.open(args.file) as s:
         if args.dataset.startswith("/"):
             if args.dataset.strip("/") not in s.file or not isinstance(s.file[args.dataset], h5py.Dataset):
                 raise SessionError(f"no dataset {args.dataset} in {args.file}; `mirrorlab session tree` lists them")
-            times, data = None, s.file[args.dataset][()]
+            ds = s.file[args.dataset]
+            times, data, columns = None, np.atleast_1d(ds[()]), column_names(ds)
         else:
             inst, _, stream = args.dataset.partition("/")
             times, data = s.stream(inst, stream)
+            g = s.file[f"instruments/{inst}/{stream}"]
+            columns = [f"time_{schema.attr_str(g, 'time_unit', 's')}", *column_names(g["data"])]
     if args.format == "npy":
         if not args.out:
             raise ValidationError([Problem("--format npy", "needs --out FILE (binary data does not go to the terminal)")])
         np.save(args.out, data)
         print(f"wrote {args.out}")
         return 0
-    flat = data.reshape(len(data), -1) if data.ndim > 1 else data.reshape(-1, 1)
+    flat = data.reshape(len(data), int(np.prod(data.shape[1:])))  # also for 0 samples
     if flat.shape[1] > 4096:
         raise SessionError(f"{args.dataset} has {flat.shape[1]} values per sample; use --format npy")
     out = open(args.out, "w", newline="") if args.out else sys.stdout
     try:
         w = csv.writer(out)
-        header = ([] if times is None else ["time_s"]) + [f"v{i}" for i in range(flat.shape[1])]
-        w.writerow(header)
+        w.writerow(columns)
         for i, row in enumerate(flat):
             w.writerow(([] if times is None else [repr(float(times[i]))]) + [repr(v.item()) for v in row])
     finally:
         if args.out:
             out.close()
     return 0
+
+
+def column_names(ds: h5py.Dataset) -> list[str]:
+    """CSV column names of a dataset's values, one per value of a sample (axis 0 is the sample).
+
+    The name is the stream's (for ``<stream>/data``) or the dataset's, with the sample index
+    (``xy_3_1``) or, for the first sample axis, the names a ``labels`` attribute of the dataset or
+    its group declares (``points_S_A_0``); then the unit (``unit``/``units`` of the dataset, or
+    the stream's ``unit``), as in the kinematics CSV files: ``temperature_K``.
+    """
+    group = ds.parent
+    stream = ds.name.rsplit("/", 1)[-1] == "data" and "time" in group
+    name = group.name.rsplit("/", 1)[-1] if stream else ds.name.rsplit("/", 1)[-1]
+    unit = schema.attr_str(ds, "unit") or schema.attr_str(ds, "units") or (schema.attr_str(group, "unit") if stream else "")
+    suffix = f"_{unit}" if unit else ""
+    shape = ds.shape[1:]
+    if not shape:
+        return [name + suffix]
+    labels = _labels(ds) or _labels(group)
+    axes: list[list[str]] = [[str(i) for i in range(n)] for n in shape]
+    if labels and len(labels) == shape[0]:
+        axes[0] = labels
+    return ["_".join((name, *index)) + suffix for index in itertools.product(*axes)]
+
+
+def _labels(obj: h5py.HLObject) -> list[str]:
+    """The ``labels`` attribute (a JSON list, as ``Session.write_group`` stores it), or ``[]``."""
+    try:
+        labels = schema.get_json(obj, "labels", [])
+    except (TypeError, ValueError):  # not JSON text: an array of names, or something else
+        labels = obj.attrs.get("labels", [])
+    return [str(x.decode() if isinstance(x, bytes) else x) for x in np.atleast_1d(labels)]

@@ -1,43 +1,176 @@
-"""Opening, checking and repairing session files, including files left by a crash.
+"""Opening, checking and repairing session files, including files left by a crash or damaged.
 
 A writer killed while in SWMR mode leaves the superblock marked "open for write": a plain
 ``h5py.File(path, "r")`` then fails, but ``swmr=True`` opens it with everything flushed before the
 kill. h5py cannot clear those flags, so :func:`repair` copies the readable content into a fresh
 file and atomically replaces the original.
+
+Every other failure to open or read a file (truncated, bit-damaged, not HDF5, a folder, no
+permission) becomes one typed error in plain words (:func:`os_error`, :func:`reading`), never
+HDF5's multi-line message with its buffer addresses and open flags.
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import json
 import os
+import re
 import socket
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import h5py
 
-from ..errors import SessionError
-from .schema import LIBVER, ROOT_ATTRS, SCHEMA_VERSION, attr_str
+from ..errors import DamagedFileError, MirrorlabError, SessionError
+from .schema import LIBVER, ROOT_ATTRS, SCHEMA_VERSION, STATUSES, attr_str
+
+#: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
+OPEN_FOR_WRITE = "file is already open for write"
+
+#: Reads of metadata per object in SWMR mode before HDF5 gives up. HDF5's default (100) sleeps
+#: with exponential backoff between attempts: a truncated or bit-damaged file then retries for
+#: many minutes (measured: > 12 min). 20 attempts fail within milliseconds (30 already take 1 s),
+#: yet still let a reader ride over a writer's half-written metadata.
+SWMR_READ_ATTEMPTS = 20
+
+#: What h5py raises while reading a damaged file: OSError / RuntimeError from the library, KeyError
+#: for an object it cannot open, ValueError (UnicodeDecodeError, JSONDecodeError) for garbled text.
+READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError)
+
+_ADVICE = {
+    errno.EACCES: "check the permissions of the file and its folder (`ls -l`) or use a folder you can write to",
+    errno.EPERM: "check the permissions of the file and its folder (`ls -l`) or use a folder you can write to",
+    errno.EROFS: "that disk is mounted read-only; use another folder",
+    errno.ENOSPC: "the disk is full; free some space or use another disk",
+    errno.EDQUOT: "your disk quota is used up; free some space or use another disk",
+    errno.ENOENT: "check the path",
+    errno.ENOTDIR: "a part of the path is a file, not a folder; check the path",
+    errno.EISDIR: "that is a folder; give the path of a session file (.h5)",
+}
+
+
+def os_error(path: str | Path, exc: BaseException, action: str = "read") -> MirrorlabError:
+    """The plain-words error for ``exc``, raised by h5py while trying to ``action`` ``path``.
+
+    Operating-system failures (no permission, read-only disk, disk full...) become a
+    :class:`SessionError` naming the cause and what to do; anything HDF5 could not make sense of
+    becomes a :class:`DamagedFileError`. Never includes HDF5's open flags or buffer addresses.
+    """
+    code = getattr(exc, "errno", None)
+    if isinstance(exc, OSError) and code in _ADVICE:
+        return SessionError(f"cannot {action} {path}: {os.strerror(code)}; {_ADVICE[code]}")
+    text = str(exc)
+    cut = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", text)
+    if cut:
+        return DamagedFileError(f"{path}: truncated or damaged HDF5 file: only {int(cut[1]):,} of its "
+                                f"{int(cut[2]):,} bytes are there (cut off while copying or writing?); "
+                                "copy it again from its source or restore it from a backup")
+    if "file signature not found" in text:
+        return DamagedFileError(f"{path}: not an HDF5 file, or a truncated or damaged HDF5 file (no HDF5 signature); "
+                                "give a mirrorlab session file (.h5) or restore this one from a backup")
+    if isinstance(exc, OSError) and code is not None:
+        return SessionError(f"cannot {action} {path}: {os.strerror(code)}; check the path and the disk")
+    return DamagedFileError(f"{path}: truncated or damaged HDF5 file ({_reason(exc)}); "
+                            "restore it from a backup or copy it again from its source")
+
+
+def _reason(exc: BaseException) -> str:
+    """HDF5's reason without the call it failed in, its key = value details or its h5clear hint."""
+    if isinstance(exc, UnicodeDecodeError):
+        return "text that is not valid UTF-8"
+    if isinstance(exc, json.JSONDecodeError):
+        return "an attribute that is not valid JSON"
+    text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    if "(" in text and text.rstrip().endswith(")"):
+        text = text[text.index("(") + 1:text.rstrip().rindex(")")]
+    text = re.split(r"[:,] \w+ = ", text)[0].split(" (may use")[0].strip()
+    return text or type(exc).__name__
+
+
+@contextmanager
+def reading(path: str | Path) -> Iterator[None]:
+    """Turn what h5py raises while reading ``path`` into one :class:`DamagedFileError`."""
+    try:
+        yield
+    except MirrorlabError:
+        raise
+    except READ_ERRORS as exc:
+        raise os_error(path, exc) from exc
+
+
+def members(group: h5py.Group, name: str | None = None) -> list[tuple[str, Any]]:
+    """``(name, object)`` of each member of ``group`` (or of its member ``name``; none if absent).
+
+    Unlike ``Group.items()``, which gives ``None`` for an object HDF5 cannot open, this raises
+    ``KeyError`` (one of :data:`READ_ERRORS`): a damaged file is reported, not read as empty.
+    """
+    if name is not None:
+        if name not in group:
+            return []
+        group = group[name]
+    return [(key, group[key]) for key in group]
+
+
+def _require_file(path: Path) -> None:
+    if path.is_dir():
+        inside = sorted(p.name for p in path.glob("*.h5"))[:3]
+        hint = f" (it holds {', '.join(inside)})" if inside else ""
+        raise SessionError(f"{path} is a folder, not a session file; give the path of a .h5 file{hint}")
+    if not path.exists():
+        raise SessionError(f"no session file at {path}; check the path")
+
+
+def _open_swmr(path: Path) -> h5py.File:
+    """``h5py.File(path, "r", swmr=True)`` with :data:`SWMR_READ_ATTEMPTS` (h5py has no option)."""
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V110, h5py.h5f.LIBVER_V110)
+    # h5p's extension module links libhdf5, so the symbol resolves in the library h5py uses.
+    setter = ctypes.CDLL(h5py.h5p.__file__).H5Pset_metadata_read_attempts
+    setter.argtypes, setter.restype = [ctypes.c_int64, ctypes.c_uint], ctypes.c_int
+    if setter(fapl.id, SWMR_READ_ATTEMPTS) < 0:
+        raise SessionError(f"this HDF5 library refused {SWMR_READ_ATTEMPTS} metadata read attempts")
+    fid = h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
+    return h5py.File(fid)
 
 
 def open_readonly(path: str | Path) -> tuple[h5py.File, bool]:
     """Open a session file read-only; returns ``(file, crashed)``.
 
     ``crashed`` is True when the file is still marked open for write by a writer that is gone (or
-    still running): it is then opened in SWMR read mode, which works in both cases.
+    still running): it is then opened in SWMR read mode, which works in both cases. Only that
+    error falls back to SWMR; a truncated, damaged or non-HDF5 file raises
+    :class:`DamagedFileError` at once, other failures a :class:`SessionError` in plain words.
     """
     path = Path(path)
-    if not path.exists():
-        raise SessionError(f"no session file at {path}; check the path")
+    _require_file(path)
     try:
         return h5py.File(path, "r"), False
     except OSError as exc:
-        try:
-            return h5py.File(path, "r", libver=LIBVER, swmr=True), True
-        except OSError:
-            raise SessionError(f"{path} is not a readable HDF5 session file: {exc}") from exc
+        if OPEN_FOR_WRITE not in str(exc):
+            raise os_error(path, exc) from exc
+    try:
+        return _open_swmr(path), True
+    except READ_ERRORS as exc:
+        raise os_error(path, exc) from exc
+
+
+def open_writable(path: str | Path, mode: str = "a") -> h5py.File:
+    """``h5py.File(path, mode, libver=LIBVER)`` (``"w"`` creates, ``"a"`` appends) with plain errors."""
+    path = Path(path)
+    try:
+        if mode == "w":
+            path.parent.mkdir(parents=True, exist_ok=True)
+        return h5py.File(path, mode, libver=LIBVER)
+    except FileExistsError:  # from mkdir: a file stands where the path needs a folder
+        raise os_error(path, NotADirectoryError(errno.ENOTDIR, "not a directory"), "create") from None
+    except OSError as exc:
+        raise os_error(path, exc, "create" if mode == "w" else "write to") from exc
 
 
 def lock_path(path: str | Path) -> Path:
@@ -90,7 +223,8 @@ class CheckReport:
 
     @property
     def complete(self) -> bool:
-        return self.status in ("closed", "aborted") and not self.open_for_write and not self.problems
+        """Closed normally: not aborted, not open or flagged open for write, no problems found."""
+        return self.status == "closed" and not self.open_for_write and not self.problems
 
     def as_dict(self) -> dict[str, Any]:
         return {"path": self.path, "status": self.status, "schema": self.schema,
@@ -102,7 +236,7 @@ def check(path: str | Path) -> CheckReport:
     """Check a session file: schema, status, crash flags, stream consistency."""
     f, crashed = open_readonly(path)
     report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path))
-    with f:
+    with f, reading(path):
         missing = [a for a in ROOT_ATTRS if a not in f.attrs]
         if missing:
             report.problems.append(f"missing root attributes: {', '.join(missing)} (not a mirrorlab session?)")
@@ -110,6 +244,12 @@ def check(path: str | Path) -> CheckReport:
         if report.schema is not None and report.schema > SCHEMA_VERSION:
             report.problems.append(f"schema {report.schema} is newer than this mirrorlab ({SCHEMA_VERSION}); upgrade")
         report.status = attr_str(f, "status")
+        if report.status not in STATUSES:
+            report.problems.append(f"status {report.status!r} is none of {', '.join(STATUSES)} "
+                                   "(a damaged file, or not written by mirrorlab)")
+        if report.status == "aborted":
+            report.problems.append("status is 'aborted': the recording did not finish as planned "
+                                   "(everything recorded up to its end is kept)")
         if report.status == "open":
             if report.writer:
                 report.problems.append(f"status is 'open': it is being recorded right now by {report.writer}")
@@ -117,8 +257,8 @@ def check(path: str | Path) -> CheckReport:
                 why = "the recording was killed" if crashed else "it was never closed"
                 report.problems.append(f"status is 'open': the session is incomplete ({why}); "
                                        "run `mirrorlab session close FILE --aborted` to mark it")
-        for label, inst in f.get("instruments", {}).items():
-            for name, g in inst.items():
+        for label, inst in members(f, "instruments"):
+            for name, g in members(inst):
                 if not isinstance(g, h5py.Group) or "data" not in g:
                     continue
                 n_data, n_time = g["data"].shape[0], g["time"].shape[0]
@@ -136,7 +276,7 @@ def repair(path: str | Path) -> None:
     and replaces the original atomically; the original is untouched if anything fails.
     """
     path = Path(path)
-    src = h5py.File(path, "r", libver=LIBVER, swmr=True)
+    src = _open_swmr(path)
     fd, tmp_name = tempfile.mkstemp(prefix=path.name + ".", suffix=".repair", dir=path.parent)
     os.close(fd)
     try:
@@ -187,5 +327,5 @@ def mark_status(path: str | Path, status: str) -> None:
     if crashed:
         repair(path)
     remove_lock(path)
-    with h5py.File(path, "a", libver=LIBVER) as f:
+    with open_writable(path) as f:
         f.attrs["status"] = status

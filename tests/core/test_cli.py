@@ -117,7 +117,7 @@ def test_run_recipe_with_overrides_then_inspect(tmp_path: Path, acme_site: Path)
     assert check.returncode == 0 and json.loads(check.stdout)["complete"] is True
     csv = run_cli("session", "export", str(out), "thermo/temperature")
     rows = csv.stdout.strip().splitlines()
-    assert rows[0] == "time_s,v0" and len(rows) == samples + 1
+    assert rows[0] == "time_s,temperature_K" and len(rows) == samples + 1
 
     analyze = run_cli("analyze", "acme_drift_rate", str(out), "--input", "time=/instruments/thermo/temperature/time",
                       "--input", "values=/instruments/thermo/temperature/data", "--skip", "0.5 s", sites=(acme_site,))

@@ -70,7 +70,9 @@ def test_sigkill_keeps_everything_older_than_one_second(tmp_path: Path, acme_sit
     with h5py.File(path, "r") as f:  # a normal open works again
         assert f.attrs["status"] == "aborted"
         assert f["instruments/thermo/temperature/time"].shape[0] == len(times)
-    assert run_cli("session", "check", str(path)).returncode == 0
+    after = run_cli("session", "check", str(path))  # readable again, but it did not finish
+    assert after.returncode == 1 and "INCOMPLETE (status 'aborted'" in after.stdout, after.stdout
+    assert "flagged" not in after.stdout and "killed" not in after.stdout
 
 
 def test_another_process_reads_the_growing_file(tmp_path: Path, acme_site: Path) -> None:

@@ -1,0 +1,80 @@
+"""``mirrorlab session info | check | export`` on real files: statuses, live recordings, output."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mirrorlab.core import Session
+
+from tests.support import run_cli
+
+
+@pytest.fixture(scope="module")
+def scanned(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A film-scanner recording (streams without a unit) plus /calibration, /truth and /report."""
+    path = tmp_path_factory.mktemp("scan") / "scan.h5"
+    with Session.create(path, operator="ana") as s:
+        s.add_instrument("cam", "film_scanner", simulate=True, settings={"lines": 32}, simulator={"clock": "FAST"})
+        s.record(seconds=0.5)
+        s.write_group("calibration/cam", {"rms": 0.4, "residuals": np.zeros((7, 2))}, {"model": "projective"})
+        s.write_group("truth/cam/markers", {"points": np.zeros((4, 2, 3))}, {"labels": ["S_A", "S_C"]})
+        s.write_group("truth/cam/analytic", {"phi": np.zeros(4)})
+        s.write_group("report", {"systematic": np.ones(3), "pairs": np.array([5, 6, 7])},
+                      {"description": "demo summary"})
+    return path
+
+
+def test_check_exits_1_for_an_aborted_recording(tmp_path: Path) -> None:
+    path = tmp_path / "aborted.h5"
+    with pytest.raises(RuntimeError), Session.create(path):
+        raise RuntimeError("the instrument stopped")  # leaving `with` by an exception aborts it
+    proc = run_cli("session", "check", str(path))
+    assert proc.returncode == 1, proc.stdout
+    assert "INCOMPLETE (status 'aborted'" in proc.stdout and "did not finish" in proc.stdout
+    report = json.loads(run_cli("session", "check", str(path), "--json").stdout)
+    assert report["complete"] is False and report["status"] == "aborted"
+
+
+def test_info_says_a_live_recording_is_being_recorded(tmp_path: Path, acme_site: Path, with_sites) -> None:
+    registry = with_sites(acme_site)
+    path = tmp_path / "live.h5"
+    with Session.create(path, registry=registry) as s:
+        s.add_instrument("thermo", "acme_thermometer", simulate=True, settings={"rate": 100})
+        s.start_recording()
+        try:
+            proc = run_cli("session", "info", str(path))
+            data = json.loads(run_cli("session", "info", str(path), "--json").stdout)
+        finally:
+            s.stop_recording()
+    assert proc.returncode == 0, proc.stderr
+    first = proc.stdout.splitlines()[0]
+    assert "being recorded right now by pid" in first and "crash" not in proc.stdout, first
+    assert data["writer"] and data["writer"].startswith("pid ")
+
+
+def test_info_shows_units_only_when_declared_and_every_group(scanned: Path) -> None:
+    proc = run_cli("session", "info", str(scanned))
+    assert proc.returncode == 0, proc.stderr
+    assert "[]" not in proc.stdout, proc.stdout
+    lines = proc.stdout.splitlines()
+    assert any(line.strip().startswith("frames: ") and "32×512 uint8" in line for line in lines), lines
+    for text in ("/calibration/cam: 2 datasets", "/truth/cam: 2 groups", "/report: 2 datasets (demo summary)"):
+        assert any(text in line for line in lines), (text, lines)
+    groups = json.loads(run_cli("session", "info", str(scanned), "--json").stdout)["groups"]
+    assert groups["/calibration/cam"] == {"datasets": 2, "groups": 0, "description": ""}
+
+
+def test_export_names_columns_with_units(scanned: Path, tmp_path: Path, acme_site: Path) -> None:
+    rows = list(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "cam/frame_index").stdout)))
+    assert rows[0] == ["time_s", "frame_index"]
+    header = next(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "/truth/cam/markers/points").stdout)))
+    assert header[:4] == ["points_S_A_0", "points_S_A_1", "points_S_A_2", "points_S_C_0"] and len(header) == 6
+    header = next(csv.reader(io.StringIO(run_cli("session", "export", str(scanned), "/report/pairs").stdout)))
+    assert header == ["pairs"]
+    scalar = run_cli("session", "export", str(scanned), "/calibration/cam/rms")
+    assert scalar.returncode == 0 and scalar.stdout.splitlines() == ["rms", "0.4"], scalar.stderr
