@@ -7,6 +7,8 @@ their own errors from :class:`MirrorlabError` (for example ``mirrorlab.plugins.p
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class MirrorlabError(Exception):
     """Base class of every error mirrorlab raises on purpose."""
@@ -51,6 +53,18 @@ class DuplicateNameError(PluginError):
 
 class SessionError(MirrorlabError):
     """A session file is missing, of the wrong schema, read-only, or in the wrong state."""
+
+
+class SessionExistsError(SessionError):
+    """A new session would replace an existing file.
+
+    ``advice`` says what to do; the API's default names ``overwrite=True``, the CLI rewords it for
+    its ``--overwrite`` option.
+    """
+
+    def __init__(self, path: Path, advice: str = "pass overwrite=True to replace it, or choose another path") -> None:
+        self.path = path
+        super().__init__(f"{path} already exists; {advice}")
 
 
 class AlgorithmError(MirrorlabError):

@@ -214,16 +214,18 @@ def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str
 
 
 def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
-               on_session: Callable[[Session], None] | None = None) -> Path:
+               on_session: Callable[[Session], None] | None = None, overwrite: bool = False) -> Path:
     """Run a validated recipe into a new session file; return its path.
 
     On failure the session is closed with status ``aborted`` (everything recorded is kept) and
-    the error propagates.
+    the error propagates; a failure before anything was recorded or stored (an instrument that
+    would not connect) leaves no file (see :meth:`Session.create`). ``overwrite`` replaces an
+    existing ``out``.
     """
     record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
               "effective": json.loads(json.dumps(recipe.data, default=str))}
     with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
-                        registry=registry) as session:
+                        registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
         for plan in recipe.instruments:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..recipes import load_recipe, run_recipe
 from ..session import Session
+from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 
 #: The bundled recipe ``mirrorlab demo`` runs, relative to the repository/installation root.
@@ -19,12 +20,14 @@ def add(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, help="session file to write (default sessions/out/<recipe>-<UTC>.h5)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a recipe value, e.g. steps.0.seconds=2 (repeatable)")
+    add_overwrite_option(p)
     p.add_argument("--check", action="store_true", help="only validate the recipe")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run)
     d = sub.add_parser("demo", help="run the bundled demonstration recipe on simulated instruments")
     d.add_argument("--out", type=Path)
     d.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
+    add_overwrite_option(d)
     d.add_argument("--no-progress", action="store_true")
     d.set_defaults(func=demo, check=False)
 
@@ -35,8 +38,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.recipe}: ok ({len(recipe.instruments)} instruments, {len(recipe.steps)} steps)")
         return 0
     out = args.out or recipe.default_output()
-    with progress_bar(not args.no_progress) as on_event:
-        run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event))
+    with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+        run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event), overwrite=args.overwrite)
     print_summary(out)
     return 0
 

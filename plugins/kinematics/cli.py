@@ -23,6 +23,7 @@ import numpy as np
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
 from mirrorlab.core.cli.options import add_parameter_options, collected
+from mirrorlab.core.cli.outputs import add_overwrite_option
 from mirrorlab.core.cli.progress import progress_bar
 from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.errors import Problem, ValidationError
@@ -197,8 +198,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not path.is_file():
         raise ValidationError([Problem("FILE", f"no such marker file {str(path)!r}")])
     out = Path(args.session)
-    opener = (Session.open(out, writable=True) if out.exists()
-              else Session.create(out, description=f"markers imported from {path.name}"))
+    # A failed import into a new session leaves no file (the session is a draft until written).
+    opener = (Session.open(out, writable=True) if out.exists() and not args.overwrite
+              else Session.create(out, description=f"markers imported from {path.name}", overwrite=args.overwrite))
     with opener as s:
         group, data = import_markers(s, path, args.name, args.format)
     missing = float(np.isnan(data.points).any(-1).mean()) if data.points.size else 0.0
@@ -410,7 +412,8 @@ def add(subparsers: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("import", help="copy a C3D/TRC/TSV marker file into a session as /markers/<name>")
     p.add_argument("file", help="marker file (.c3d, .trc, .tsv)")
-    p.add_argument("--session", required=True, help="session file (created if absent)")
+    p.add_argument("--session", required=True, help="session file (created if absent, else added to)")
+    add_overwrite_option(p, "--session")
     p.add_argument("--name", help="dataset name under /markers (default: the file's stem)")
     p.add_argument("--format", default="auto", choices=("auto", "c3d", "trc", "tsv"))
     p.add_argument("--json", action="store_true")
