@@ -494,8 +494,8 @@ class Session:
             ended.add(inst.label)
             if seconds is not None and inst.failed is None:
                 self.events.emit("warning", inst.label, "source_ended",
-                                 f"the source of {inst.label!r} ended after about {elapsed:.1f} s, before the "
-                                 f"requested {seconds:g} s; the recording holds what it delivered",
+                                 f"source ended after about {elapsed:.1f} s, before the requested {seconds:g} s; "
+                                 "the recording holds what it delivered",
                                  elapsed=elapsed, requested=seconds)
 
     # -- writing other data ----------------------------------------------------------------------

@@ -34,7 +34,7 @@ def progress_bar(enabled: bool = True) -> Iterator[Any]:
             bars.update(tasks[event.source], completed=event.data.get("done", 0), total=total)
         elif event.level in ("warning", "error"):
             console.print(f"[{'yellow' if event.level == 'warning' else 'red'}]{event.level}[/]: "
-                          f"{event.source}: {event.message}", highlight=False)
+                          f"{event.source}: {event.message}", highlight=False, soft_wrap=True)
 
     with bars:
         yield on_event
