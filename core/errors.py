@@ -14,6 +14,11 @@ class MirrorlabError(Exception):
     """Base class of every error mirrorlab raises on purpose."""
 
 
+class MirrorlabWarning(UserWarning):
+    """Something the user must know that does not stop the work (a file holding less than it
+    declares, say). The CLI prints it as one ``mirrorlab: warning:`` line."""
+
+
 class ValidationError(MirrorlabError):
     """Input (a recipe, parameters, a CLI option) failed validation.
 

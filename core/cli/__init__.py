@@ -10,9 +10,11 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
-from ..errors import MirrorlabError, ValidationError
+from ..errors import MirrorlabError, MirrorlabWarning, ValidationError
 from ..registry import get_registry
 from ..session import mirrorlab_version
 from . import analyze_cmd, plugins_cmd, run_cmd, session_cmd
@@ -42,6 +44,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_python_show_warning = warnings.showwarning
+
+
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: Any = None, line: str | None = None) -> None:
+    """mirrorlab's own warnings are one line on stderr, like its errors; others keep Python's format."""
+    if issubclass(category, MirrorlabWarning):
+        print(f"mirrorlab: warning: {message}", file=sys.stderr)
+    else:
+        _python_show_warning(message, category, filename, lineno, file, line)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mirrorlab`` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -50,6 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     if not debug:
         logging.getLogger("mirrorlab").setLevel(logging.ERROR)  # the CLI prints what matters itself
+        warnings.showwarning = _show_warning
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
