@@ -72,6 +72,14 @@ class SessionExistsError(SessionError):
         super().__init__(f"{path} already exists; {advice}")
 
 
+class DataError(MirrorlabError):
+    """Input data is damaged (a cut file, a frame that cannot be decoded): retrying cannot help.
+
+    An instrument whose source raises it during acquisition stops and reports it once, instead of
+    reconnecting as it does for a lost connection.
+    """
+
+
 class AlgorithmError(MirrorlabError):
     """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
 
