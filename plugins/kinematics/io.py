@@ -17,6 +17,7 @@ import numpy as np
 from mirrorlab.core.errors import MirrorlabWarning
 from numpy.typing import ArrayLike, NDArray
 
+from .c3d_reader import read_c3d_arrays
 from .errors import KinematicsIOError, TruncatedMarkerFile
 
 __all__ = ["MarkerData", "read_c3d", "read_trc", "read_qualisys_tsv", "write_c3d", "write_csv"]
@@ -134,7 +135,8 @@ def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
     TruncatedMarkerFile
         If the file holds fewer frames than its header declares (it was cut short).
     KinematicsIOError
-        If the file cannot be read or has no point data.
+        If the file cannot be read or has no point data (ezc3d runs in a child process, so a
+        damaged file that crashes it is reported here too).
 
     Examples
     --------
@@ -144,37 +146,23 @@ def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
     >>> d = read_c3d(p); d.labels, d.rate, d.points.shape
     (['A', 'B', 'C'], 100.0, (4, 3, 3))
     """
-    try:
-        import ezc3d
-    except ImportError as exc:  # pragma: no cover
-        raise KinematicsIOError("reading C3D needs the 'ezc3d' package; pip install ezc3d") from exc
     p = Path(path)
     if not p.is_file():
         raise KinematicsIOError(f"{p}: no such C3D file")
     _check_c3d_length(p)
-    try:
-        c = ezc3d.c3d(str(p))
-        par = c["parameters"]["POINT"]
-        labels = [str(x).strip() for x in par["LABELS"]["value"]]
-        if "LABELS2" in par:
-            labels += [str(x).strip() for x in par["LABELS2"]["value"]]
-        rate = float(np.ravel(par["RATE"]["value"])[0])
-        units = par["UNITS"]["value"] if "UNITS" in par else []
-        data = np.asarray(c["data"]["points"], dtype=float)  # (4, M, T)
-        resid = np.asarray(c["data"]["meta_points"]["residuals"])
-        first = int(c["header"]["points"]["first_frame"])
-    except Exception as exc:  # ezc3d raises plain RuntimeError/IOError/ValueError; parameters may lack keys
-        raise KinematicsIOError(f"{p}: not a readable C3D file ({type(exc).__name__}: {exc}); check that it is "
-                                "a complete C3D file") from exc
-    if data.ndim != 3 or data.shape[1] == 0 or data.shape[2] == 0:
+    c = read_c3d_arrays(p)
+    data = c.points  # (4, M, T)
+    if data.ndim != 3 or data.shape[0] < 3 or data.shape[1] == 0 or data.shape[2] == 0:
         raise KinematicsIOError(f"{p}: the C3D file holds no 3-D points")
-    if not (np.isfinite(rate) and rate > 0):
-        raise KinematicsIOError(f"{p}: POINT:RATE is {rate}, not a frame rate; the file is damaged")
-    unit = str(units[0]) if len(units) else "mm"
+    if not (np.isfinite(c.rate) and c.rate > 0):
+        raise KinematicsIOError(f"{p}: POINT:RATE is {c.rate}, not a frame rate; the file is damaged")
+    unit = c.units[0] if c.units else "mm"
     pts = np.transpose(data[:3], (2, 1, 0)) * _scale(unit, p)
-    if resid.size:
-        pts[resid[0].T < 0] = np.nan
-    return MarkerData(labels[: pts.shape[1]], rate, pts, first)
+    if c.residuals.shape == (1, *data.shape[1:]):
+        pts[c.residuals[0].T < 0] = np.nan
+    n = pts.shape[1]  # a file may name fewer points than it holds: number the rest
+    labels = c.labels[:n] + [f"point_{k + 1}" for k in range(len(c.labels), n)]
+    return MarkerData(labels, c.rate, pts, c.first_frame)
 
 
 def _split(line: str, sep: str) -> list[str]:

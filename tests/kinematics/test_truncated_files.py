@@ -66,3 +66,13 @@ def test_a_cut_qualisys_tsv(tmp_path: Path, data_dir: Path) -> None:
     whole_rows = cut(real, tmp_path / "rows.tsv", text.index(b"\n", 400_000) + 1)
     with pytest.warns(MirrorlabWarning, match=r"rows.tsv: the header declares 6282 frames but the file holds \d+"):
         read_qualisys_tsv(whole_rows)
+
+
+def test_a_c3d_that_crashes_ezc3d_is_an_error_not_a_crash(tmp_path: Path, data_dir: Path) -> None:
+    # one flipped bit in the parameter section makes ezc3d segfault (found by tests/fuzz)
+    data = bytearray((data_dir / "mocap" / "markers_analogs.c3d").read_bytes())
+    data[7847] ^= 1 << 2
+    bad = tmp_path / "flipped.c3d"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(KinematicsIOError, match=r"flipped.c3d: the C3D reader \(ezc3d\) crashed on this file"):
+        read_c3d(bad)
