@@ -64,7 +64,10 @@ def read_grey(path: Path) -> np.ndarray:
     if path.suffix.lower() in (".jpg", ".jpeg") and data.rfind(b"\xff\xd9") < data.rfind(b"\xff\xda"):
         raise DataError(f"image {str(path)!r} is cut short (its JPEG data stop before the end marker); "
                         "replace or remove it")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE) if data else None
+    except cv2.error:  # some damaged headers fail OpenCV's own checks instead of returning None
+        img = None
     if img is None:
         raise DataError(f"image {str(path)!r} cannot be decoded (damaged, or not a PNG/TIFF/JPEG/BMP); "
                         "replace or remove it")
