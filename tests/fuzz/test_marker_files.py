@@ -17,6 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from mirrorlab.core.errors import MirrorlabError, MirrorlabWarning
 from mirrorlab.plugins.kinematics import MarkerData, read_c3d, read_qualisys_tsv, read_trc
+from mirrorlab.plugins.kinematics.cli import read_mot
 from mirrorlab.plugins.photogrammetry.csvio import read_columns_csv, read_marker_csv, read_points_csv
 
 from tests.fuzz.strategies import damaged, fuzz
@@ -27,6 +28,7 @@ TRC = (SHARED_DATA / "mocap" / "markers.trc").read_bytes()
 #: The header and the first 150 rows of the Qualisys export (the whole file is slow to fuzz).
 TSV = b"".join((SHARED_DATA / "trajectories" / "6_throws_minimal_tracking_loss.tsv").read_bytes()
                .splitlines(keepends=True)[:162])
+MOT = (SHARED_DATA / "mocap" / "inverse_kin.mot").read_bytes()
 MARKER_CSV = b"# 2-D markers\nframe,marker,x,y,xv,yv\n0,0,812.4,401.2,233.9,388.0\n0,1,790.1,455.7,,\n" \
              b"1,0,811.0,402.5,234.1,387.2\n1,1,791.3,454.9,230.0,nan\n"
 POINTS_CSV = b"frame,marker,X,Y,Z,gap\n0,0,1,2,3,0.5\n0,1,4,5,6,0.25\n1,0,7,8,9,0\n1,1,nan,nan,nan,nan\n"
@@ -106,3 +108,13 @@ def test_points_csv(folder: Path, data: bytes) -> None:
         points, extra = result
         assert points.ndim == 3 and points.shape[2] == 3
         assert all(v.shape == points.shape[:2] for v in extra.values())
+
+
+@pytest.mark.timeout(120)
+@TEXT
+@given(data=damaged(MOT, hot=1200) | st.text(max_size=300).map(str.encode))
+def test_opensim_mot(folder: Path, data: bytes) -> None:
+    result = outcome(lambda p: read_mot(p, "elbow_flexion"), folder / "reference.mot", data)
+    if not isinstance(result, MirrorlabError):
+        time, values = result
+        assert time.shape == values.shape and time.ndim == 1 and time.size > 0
