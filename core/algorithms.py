@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import AlgorithmError, MirrorlabError
+from .errors import AlgorithmInputError, MirrorlabError, Problem
 from .params import ParameterSet
 
 
@@ -136,14 +136,15 @@ def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params
     Validation errors raise; failures inside ``run`` are returned as ``status="failed"``.
     """
     values = algorithm.parameters.validate(dict(params), where=f"{algorithm.name}.parameters")
+    takes = ", ".join(p.name for p in algorithm.inputs) or "none"
+    unknown = sorted(set(inputs) - {p.name for p in algorithm.inputs})  # a misspelt name first: it explains a missing one
     missing = [p.name for p in algorithm.inputs if not p.optional and p.name not in inputs]
-    if missing:
-        raise AlgorithmError(f"{algorithm.name} needs the input(s) {', '.join(missing)}; "
-                             f"it takes: {', '.join(p.name for p in algorithm.inputs)}")
-    unknown = set(inputs) - {p.name for p in algorithm.inputs}
-    if unknown:
-        raise AlgorithmError(f"{algorithm.name} does not take the input(s) {', '.join(sorted(unknown))}; "
-                             f"it takes: {', '.join(p.name for p in algorithm.inputs)}")
+    problems = [Problem(f"{algorithm.name}.inputs.{name}", f"{algorithm.name} does not take the input {name!r}; "
+                        f"it takes: {takes}") for name in unknown]
+    problems += [Problem(f"{algorithm.name}.inputs.{name}", f"{algorithm.name} needs the input(s) {name}; "
+                         f"it takes: {takes}") for name in missing]
+    if problems:
+        raise AlgorithmInputError(problems)
     context = context or RunContext()
     try:
         outputs = algorithm().run(inputs, values, context)

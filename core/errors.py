@@ -31,7 +31,7 @@ class ValidationError(MirrorlabError):
 
 
 class Problem:
-    """One validation defect: where it is (file, key path) and why it is wrong."""
+    """One validation defect: where it is (file, key path; ``key=""`` for the whole file) and why it is wrong."""
 
     __slots__ = ("file", "key", "reason")
 
@@ -41,8 +41,8 @@ class Problem:
         self.reason = reason
 
     def __str__(self) -> str:
-        where = f"{self.file}: " if self.file else ""
-        return f"{where}{self.key}: {self.reason}"
+        where = "".join(f"{part}: " for part in (self.file, self.key) if part)  # a whole-file problem has no key
+        return f"{where}{self.reason}"
 
     def __repr__(self) -> str:
         return f"Problem({self.key!r}, {self.reason!r}, file={self.file!r})"
@@ -82,6 +82,13 @@ class DataError(MirrorlabError):
 
 class AlgorithmError(MirrorlabError):
     """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
+
+
+class AlgorithmInputError(ValidationError, AlgorithmError):
+    """The inputs given to an algorithm do not match its declared ports (unknown or missing names).
+
+    A validation error (the CLI exits 2) that is also an :class:`AlgorithmError`.
+    """
 
 
 class DeviceError(MirrorlabError):

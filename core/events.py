@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-log = logging.getLogger("mirrorlab")
+log = logging.getLogger("mirrorlab.events")
 
 LEVELS = ("debug", "info", "warning", "error")
 

@@ -80,6 +80,10 @@ def mirrorlab_add_cli_commands(subparsers: argparse._SubParsersAction) -> None:
     Add a parser with ``subparsers.add_parser(name, help=...)`` and set its default ``func`` to a
     callable taking the parsed ``argparse.Namespace`` and returning an exit code (0 ok, 1 runtime
     failure, 2 usage or validation error).
+
+    Called for entry-point plugins only when needed: for ``mirrorlab --help`` and when the command
+    line names a command that is not built in (the built-in ones are listed without importing
+    anything, see :mod:`mirrorlab.core.cli.commands`).
     """
 
 

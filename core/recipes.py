@@ -102,6 +102,11 @@ def parse_override(text: str) -> tuple[list[str], Any]:
 
 
 def _apply_override(data: dict[str, Any], keys: list[str], value: Any) -> None:
+    instruments = data.get("instruments")
+    if keys[0] == "instruments" and len(keys) > 1 and isinstance(instruments, Mapping) and keys[1] not in instruments:
+        # a new table would only be blamed on the recipe ("plugin: required"): name the option's mistake
+        raise ValidationError([Problem("--set " + ".".join(keys), f"no instrument {keys[1]!r} in the recipe; "
+                                       f"it has: {', '.join(instruments) or 'none'}")])
     node: Any = data
     for i, key in enumerate(keys[:-1]):
         if isinstance(node, list):
@@ -109,8 +114,10 @@ def _apply_override(data: dict[str, Any], keys: list[str], value: Any) -> None:
                 raise ValidationError([Problem("--set " + ".".join(keys),
                                                f"{'.'.join(keys[:i])} has no item {key}")])
             node = node[int(key)]
-        else:
+        elif isinstance(node, dict):
             node = node.setdefault(key, {})
+        else:
+            raise ValidationError([Problem("--set " + ".".join(keys), f"{'.'.join(keys[:i])} is a value, not a table")])
     last = keys[-1]
     if isinstance(node, list):
         if not last.isdigit() or int(last) >= len(node):
@@ -127,13 +134,16 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     path = Path(path)
     file = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
-        raise ValidationError([Problem("-", f"cannot read the recipe: {exc.strerror}", file)]) from None
+        raise ValidationError([Problem("", f"cannot read the recipe: {exc.strerror}; check the path", file)]) from None
+    except UnicodeDecodeError as exc:
+        raise ValidationError([Problem("", f"not a TOML recipe: byte {exc.start} is not UTF-8 text "
+                                       "(a session file or other binary?); give a .toml recipe", file)]) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ValidationError([Problem("-", f"not valid TOML: {exc}", file)]) from None
+        raise ValidationError([Problem("", f"not a TOML recipe: {exc}; fix the TOML syntax there", file)]) from None
     for item in overrides:
         keys, value = parse_override(item)
         _apply_override(data, keys, value)
@@ -157,6 +167,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         problems += more
         if "plugin" not in values:
             continue
+        values = {**INSTRUMENT_KEYS.defaults(), **values}  # invalid keys are reported; check the rest on defaults
         try:
             cls = registry.instrument(values["plugin"])
         except PluginError as exc:
@@ -171,7 +182,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         if values.get("simulate") and getattr(cls, "simulator", None) is None and \
                 getattr(cls, "make_simulator", None) is None:
             problems.append(Problem(f"{where}.simulate", f"{cls.name} has no simulator", file))
-        if not values.get("simulate") and not values.get("port") and cls.needs_port(settings):
+        if not values.get("simulate") and not values.get("port") and cls.needs_port({**cls.parameters.defaults(), **settings}):
             problems.append(Problem(f"{where}.port", "required unless simulate = true "
                                     "(device path or pyserial URL)", file))
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],

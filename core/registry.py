@@ -63,15 +63,17 @@ class Provided:
 class Registry:
     """Everything the installed plugins provide."""
 
-    def __init__(self, entry_points: bool = True) -> None:
+    def __init__(self, entry_points: bool = True, builtins: bool = True) -> None:
+        """Discover the built-in plugins (unless ``builtins=False``) and the entry points (unless ``entry_points=False``)."""
         self.pm = pluggy.PluginManager(hookspecs.PROJECT)
         self.pm.add_hookspecs(hookspecs)
         self.plugins: dict[str, PluginInfo] = {}
         self._items: dict[str, dict[str, list[Provided]]] = {k: {} for k in KINDS}
-        for module in BUILTIN_PLUGINS:
-            self._load(module, "builtin", lambda m=module: importlib.import_module(m))
-        for name, loader in importlib.import_module(BUILTIN_ADAPTERS).builtin_plugins():
-            self._load(name, "builtin", loader)
+        if builtins:
+            for module in BUILTIN_PLUGINS:
+                self._load(module, "builtin", lambda m=module: importlib.import_module(m))
+            for name, loader in importlib.import_module(BUILTIN_ADAPTERS).builtin_plugins():
+                self._load(name, "builtin", loader)
         if entry_points:
             for ep in md.entry_points(group=ENTRY_POINT_GROUP):
                 dist = ep.dist.name if ep.dist else ""

@@ -33,7 +33,6 @@ import time
 import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +50,8 @@ from .store import files, schema
 from .store.recorder import Recorder
 from .store.schema import LIBVER
 from .streams import Emitter, StreamRouter, Subscription
+from .version import distribution_version as _version
+from .version import mirrorlab_version
 
 SIMULATOR_OPTIONS = ParameterSet(
     Parameter("seed", int, 0, bounds=(0, None), help="seed of the simulator's random generator"),
@@ -60,17 +61,6 @@ SIMULATOR_OPTIONS = ParameterSet(
 )
 
 _PACKAGES = ("numpy", "scipy", "h5py", "pluggy", "pyserial", "opencv-python-headless", "textual", "rich")
-
-
-def _version(dist: str) -> str:
-    try:
-        return metadata.version(dist)
-    except metadata.PackageNotFoundError:
-        return ""
-
-
-def mirrorlab_version() -> str:
-    return _version("mirrorlab") or "0+unknown"
 
 
 @dataclass
@@ -322,7 +312,8 @@ class Session:
         if served:
             schema.set_json(g, "simulator", sim_options)
         self.events.emit("info", label, "instrument_added",
-                         f"{plugin} {label!r} ready ({'simulated' if simulate else instrument.port})")
+                         f"{plugin} {label!r} ready" + (" (simulated)" if simulate else
+                                                         f" on {instrument.port}" if instrument.port else ""))
         return instrument
 
     def _start_simulator(self, cls: type[Instrument], settings: dict[str, Any], options: dict[str, Any],

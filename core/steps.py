@@ -24,6 +24,13 @@ if TYPE_CHECKING:
     from .session import Session
 
 
+#: The nested tables of a step that runs an algorithm (see :func:`algorithm_tables`).
+ALGORITHM_TABLES = {
+    "inputs": "input name = dataset path ('/instruments/cam/frames/data') or earlier result ('@algorithm/output')",
+    "parameters": "the algorithm's parameters (`mirrorlab plugins show ALGORITHM` lists them)",
+}
+
+
 class Step(ABC):
     """Base class of recipe step kinds.
 
@@ -35,6 +42,8 @@ class Step(ABC):
     version: ClassVar[str] = "1.0.0"
     description: ClassVar[str]
     parameters: ClassVar[ParameterSet] = ParameterSet()
+    #: Nested tables the step's table may hold (validated by :meth:`validate`): name -> what goes in it.
+    tables: ClassVar[Mapping[str, str]] = {}
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
@@ -86,6 +95,7 @@ class Run(Step):
     name = "run"
     description = "run an algorithm on datasets of the session and store its result"
     parameters = ParameterSet(Parameter("algorithm", str, help="registered algorithm name"))
+    tables = ALGORITHM_TABLES
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,

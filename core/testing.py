@@ -15,8 +15,13 @@ against your simulator, through a real pseudo-terminal (or TCP socket) and your 
 Checks: connect/close idempotent; identity and metadata complete; settings round-trip;
 ``status``; declared streams are emitted with session timestamps; a stalled device raises
 :class:`DeviceTimeout`; garbage raises :class:`ProtocolError` and is counted; a disconnect is
-reported as :class:`DeviceDisconnected` and ``reconnect()`` recovers; acquisition survives a
-disconnect by reconnecting.
+reported as :class:`DeviceDisconnected` and ``reconnect()`` recovers; acquisition survives
+``disconnects`` unplug/replug cycles, each reconnecting at the first attempt.
+
+The streaming checks wait on what the instrument does (a block emitted, a reconnect reported, its
+thread ending), never on elapsed time, so a busy machine only makes them slower. ``event_timeout``
+(60 s) only turns a hang into a failure. A finite simulated source must hold enough material for
+the checks (a few blocks per disconnect): if it runs out, the check fails and says so.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ import pytest
 from .clock import SessionClock
 from .devices import Instrument, SerialInstrument, SimulatorServer
 from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError
-from .streams import Emitter, StreamRouter
+from .streams import Block, Emitter, StreamRouter, Subscription
 
 
 @contextmanager
@@ -70,8 +75,11 @@ class InstrumentConformance:
     instrument_class: ClassVar[type[SerialInstrument]]
     settings: ClassVar[dict[str, Any]] = {}
     transport: ClassVar[str] = "pty"
-    #: Seconds of acquisition used by the streaming checks.
-    acquire_seconds: ClassVar[float] = 1.0
+    #: Longest wait for any one event (a block, a reconnect) before a streaming check fails. Only a
+    #: hang detector: the checks proceed as soon as the event happens.
+    event_timeout: ClassVar[float] = 60.0
+    #: Disconnects (each followed by a reconnect and a new sample) in the reconnect check.
+    disconnects: ClassVar[int] = 3
 
     @pytest.fixture
     def sim(self) -> Iterator[tuple[SerialInstrument, SimulatorServer]]:
@@ -156,30 +164,49 @@ class InstrumentConformance:
         assert inst.query("PING").fields == ["PONG"]
 
     # -- streaming ---------------------------------------------------------------------------------
-    def _acquire(self, inst: SerialInstrument, seconds: float) -> tuple[StreamRouter, Any]:
-        """Acquire for ``seconds``, then on until every stream has emitted (a busy machine is slow)."""
+    # These checks wait on what the instrument does (a block emitted, an event reported, the thread
+    # ending), never on elapsed time: ``event_timeout`` only turns a hang into a failure.
+
+    def _start(self, inst: SerialInstrument) -> tuple[StreamRouter, SessionClock, dict[str, Subscription], _Reports]:
         router, clock = StreamRouter(), SessionClock()
         specs = {s.name: s for s in inst.streams()}
         subs = {name: router.subscribe("dut", name, maxlen=100_000) for name in specs}
+        reports = _Reports()
+        inst.report = reports
         inst.start(Emitter("dut", router, clock, specs))
-        time.sleep(seconds)
-        deadline = time.monotonic() + 10 + 20 * seconds
-        while (any(("dut", name) not in router.stats for name in specs) and inst.failed is None
-               and time.monotonic() < deadline):
-            time.sleep(0.05)
-        inst.stop()
-        return router, subs
+        return router, clock, subs, reports
+
+    def _next_block(self, inst: SerialInstrument, sub: Subscription, reports: _Reports, when: str,
+                    after: float = -np.inf) -> Block:
+        """The next block of ``sub`` stamped later than ``after``; fails if the instrument ends first."""
+        deadline = time.monotonic() + self.event_timeout
+        while time.monotonic() < deadline:
+            block = sub.get(timeout=0.05)
+            if block is not None and block.times[-1] > after:
+                return block
+            if block is None and not inst.running:
+                pytest.fail(f"stream {sub.stream!r} emitted nothing {when}: the acquisition ended "
+                            f"({inst.failed or 'the source ran out'}); give the simulator enough material "
+                            f"in `settings` for the check. Instrument messages: {reports.messages}")
+        pytest.fail(f"stream {sub.stream!r} emitted nothing {when} within {self.event_timeout:g} s. "
+                    f"Instrument messages: {reports.messages}")
 
     def test_streams_are_declared_and_emitted(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, _ = sim
         inst.configure()
         specs = {s.name: s for s in inst.streams()}
         assert specs, "an instrument declares at least one stream"
-        _, subs = self._acquire(inst, self.acquire_seconds)
-        assert inst.failed is None, inst.failed
+        _, _, subs, reports = self._start(inst)
+        seen: dict[str, list[Block]] = {name: [] for name in specs}
+        try:
+            for name in specs:  # each stream twice, so the time order is checked across blocks too
+                seen[name].append(self._next_block(inst, subs[name], reports, "after start"))
+                seen[name].append(self._next_block(inst, subs[name], reports, "after its first block"))
+        finally:
+            inst.stop()
+        assert inst.failed is None, reports.messages
         for name, spec in specs.items():
-            blocks = subs[name].drain()
-            assert blocks, f"stream {name!r} emitted nothing"
+            blocks = seen[name] + subs[name].drain()
             times = np.concatenate([b.times for b in blocks])
             assert np.all(np.diff(times) >= 0), f"stream {name!r} times go backwards"
             values = np.concatenate([b.values.reshape(-1, *spec.shape) for b in blocks])
@@ -189,29 +216,58 @@ class InstrumentConformance:
     def test_acquisition_survives_disconnect(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, server = sim
         inst.configure()
-        events: list[str] = []
-        messages: list[str] = []
-        inst.report = lambda level, kind, message, **data: (events.append(kind), messages.append(message))
-        router, clock = StreamRouter(), SessionClock()
-        specs = {s.name: s for s in inst.streams()}
-        inst.start(Emitter("dut", router, clock, specs))
-        time.sleep(self.acquire_seconds / 2)
-        threading.Thread(target=server.disconnect).start()
-        deadline = time.monotonic() + 10
-        while "reconnected" not in events and time.monotonic() < deadline and inst.failed is None:
-            time.sleep(0.05)
-        def samples() -> int:
-            return sum(st.samples for st in router.stats.values())
+        _, clock, subs, reports = self._start(inst)
+        sub = next(iter(subs.values()))
+        try:
+            self._next_block(inst, sub, reports, "before the first disconnect")
+            for n in range(1, self.disconnects + 1):
+                server.disconnect()  # while the device is streaming: the driver meets it mid-acquisition
+                if not reports.wait_for("reconnected", n, self.event_timeout, inst):
+                    why = (f"the acquisition ended ({inst.failed or 'the source ran out'}); give the simulator "
+                           "enough material in `settings` for the check" if not inst.running
+                           else f"nothing within {self.event_timeout:g} s")
+                    pytest.fail(f"no reconnect after disconnect {n}: {why}. Instrument messages: {reports.messages}")
+                self._next_block(inst, sub, reports, f"after reconnect {n}",
+                                 after=clock.from_monotonic(reports.last_at("reconnected")))
+        finally:
+            inst.stop()
+        assert reports.kinds.count("connection_lost") >= self.disconnects, reports.messages
+        assert inst.failed is None, reports.messages
+        assert inst.reconnects == self.disconnects
+        # The simulator is back at once, so the first attempt must succeed; a retry means stale bytes of
+        # the old connection were taken for the new one's replies.
+        assert "reconnect_retry" not in reports.kinds, reports.messages
 
-        before = samples()
-        deadline = time.monotonic() + 10 + 20 * self.acquire_seconds  # generous: CI machines are busy
-        while samples() == before and time.monotonic() < deadline and inst.failed is None:
-            time.sleep(0.05)
-        after = samples()
-        inst.stop()
-        assert "connection_lost" in events and "reconnected" in events, messages
-        assert inst.failed is None, messages
-        assert after > before, "no samples after the reconnect"
+
+class _Reports:
+    """An instrument's reporter that records events and lets a test wait for them."""
+
+    def __init__(self) -> None:
+        self.kinds: list[str] = []
+        self.messages: list[str] = []
+        self._last_at: dict[str, float] = {}
+        self._cond = threading.Condition()
+
+    def __call__(self, level: str, kind: str, message: str, **data: Any) -> None:
+        with self._cond:
+            self.kinds.append(kind)
+            self.messages.append(message)
+            self._last_at[kind] = time.monotonic()
+            self._cond.notify_all()
+
+    def wait_for(self, kind: str, count: int, timeout: float, inst: Instrument) -> bool:
+        """Wait until ``kind`` has been reported ``count`` times; False on timeout or if acquisition ends."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self.kinds.count(kind) < count:
+                if time.monotonic() > deadline or not inst.running:
+                    return self.kinds.count(kind) >= count
+                self._cond.wait(0.05)
+            return True
+
+    def last_at(self, kind: str) -> float:
+        """:func:`time.monotonic` reading of the latest ``kind`` event."""
+        return self._last_at[kind]
 
 
 __all__ = ["InstrumentConformance", "simulated", "DeviceError"]

@@ -4,12 +4,12 @@ Each sub-package keeps its mathematics in plain modules and its framework adapte
 ``plugin.py``, which may define ``ALGORITHMS`` (algorithm classes), ``STEPS`` (recipe step
 classes) and ``add_cli_commands(subparsers)``. Each adapter is registered as its own plugin
 (``mirrorlab.plugins.<name>``), so one that fails to import is reported as broken without taking
-the others down.
+the others down. Their CLI commands are declared in :data:`CLI_COMMANDS`, so that the ``mirrorlab``
+command lists them without importing any sub-package.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
 from collections.abc import Callable
 from types import ModuleType
@@ -17,7 +17,20 @@ from types import ModuleType
 from mirrorlab.core.hookspecs import hookimpl
 
 #: Sub-packages with a ``plugin`` module, in registration order.
-SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline")
+SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "retarget")
+
+#: CLI sub-commands of the sub-packages: name -> (one-line help, ``"module:function"`` adding the parser).
+#: ``mirrorlab --help`` lists them from here; the module is imported only when the command runs.
+CLI_COMMANDS = {
+    "calibrate": ("calibrate a camera from chessboard photos or from calibration points (CSV)",
+                  f"{__name__}.photogrammetry.plugin:add_cli_commands"),
+    "reconstruct": ("3-D markers from 2-D marker data: --method parallel|central|mirror",
+                    f"{__name__}.photogrammetry.plugin:add_cli_commands"),
+    "kinematics": ("marker import/export, derivatives, joint angles, rigid bodies",
+                   f"{__name__}.kinematics.plugin:add_cli_commands"),
+    "retarget": ("chain shape approximation (retargeting) of recorded motion",
+                 f"{__name__}.retarget.plugin:add_cli_commands"),
+}
 
 
 class Adapter:
@@ -33,12 +46,6 @@ class Adapter:
     @hookimpl
     def mirrorlab_register_steps(self) -> list[type]:
         return list(getattr(self.module, "STEPS", ()))
-
-    @hookimpl
-    def mirrorlab_add_cli_commands(self, subparsers: argparse._SubParsersAction) -> None:
-        add = getattr(self.module, "add_cli_commands", None)
-        if add is not None:
-            add(subparsers)
 
 
 def builtin_plugins() -> list[tuple[str, Callable[[], Adapter]]]:

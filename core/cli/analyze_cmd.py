@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
-from ..errors import Problem, ValidationError
+import h5py
+
+from ..algorithms import Algorithm
+from ..errors import AlgorithmError, Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
-from .options import add_parameter_options, collected
+from .options import add_parameter_options, collected, existing_path
 from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 from .run_cmd import print_summary
@@ -36,11 +40,11 @@ def add(sub: argparse._SubParsersAction) -> None:
         except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
             continue
         p = asub.add_parser(name, help=cls.description, description=cls.description)
-        p.add_argument("session", type=Path, help="session file (results are added to it)")
+        p.add_argument("session", type=existing_path, help="session file (results are added to it)")
         ins = ", ".join(f"{i.name} ({i.description})" for i in cls.inputs)
         p.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
                        help=f"input dataset paths; inputs: {ins or 'none'}")
-        p.add_argument("--no-progress", action="store_true")
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_parameter_options(p, cls.parameters)
         p.set_defaults(func=analyze, algorithm_name=name)
 
@@ -60,23 +64,50 @@ def add(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--port", help="device path or pyserial URL")
         p.add_argument("--simulate", action="store_true", help="use the plugin's simulator")
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
-        p.add_argument("--no-progress", action="store_true")
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_parameter_options(p, cls.parameters)
         p.set_defaults(func=record, instrument_name=name)
 
 
-def analyze(args: argparse.Namespace) -> int:
-    inputs = {}
+def _checked(algorithm: type[Algorithm], args: argparse.Namespace) -> tuple[dict[str, str], dict[str, Any]]:
+    """``--input NAME=/DATASET`` and ``--<parameter>`` options checked against the algorithm, named as options.
+
+    Every problem is reported at once; a misspelt input name is not reported again as a missing input.
+    """
+    inputs, problems = {}, []
+    ports = {p.name: p for p in algorithm.inputs}
     for item in args.input:
         name, sep, path = item.partition("=")
-        if not sep:
-            raise ValidationError([Problem("--input", f"{item!r} is not NAME=/DATASET")])
-        inputs[name] = path
+        if not sep or not path:
+            problems.append(Problem("--input", f"{item!r} is not NAME=/DATASET"))
+        elif name not in ports:
+            problems.append(Problem(f"--input {name}", f"{algorithm.name} takes no input {name!r}; "
+                                    f"it takes: {', '.join(ports) or 'none'}"))
+        else:
+            inputs[name] = path
+    if not problems:
+        problems = [Problem(f"--input {p.name}", f"required: {p.name}=/DATASET ({p.description})")
+                    for p in algorithm.inputs if not p.optional and p.name not in inputs]
+    params, more = algorithm.parameters.problems(collected(args))
+    problems += [Problem("--" + p.key.replace("_", "-"), p.reason) for p in more]
+    if problems:
+        raise ValidationError(problems)
+    return inputs, params
+
+
+def analyze(args: argparse.Namespace) -> int:
+    algorithm = get_registry().algorithm(args.algorithm_name)
+    inputs, params = _checked(algorithm, args)
     with Session.open(args.session, writable=True) as s, progress_bar(not args.no_progress) as on_event:
         s.events.subscribe(on_event)
-        ref = s.run(args.algorithm_name, inputs, collected(args))
-    print(f"{ref.path}: {ref.status}{' — ' + ref.error if ref.error else ''}")
-    return 0 if ref.status == "ok" else 1
+        ref = s.run(algorithm, inputs, params)
+        if ref.status != "ok":  # stored with its error; said once, by main()
+            raise AlgorithmError(f"{ref.path} failed: {ref.error}")
+        written = {name: (d.shape, d.dtype) for name, d in s.file[ref.path].items() if isinstance(d, h5py.Dataset)}
+    print(f"{args.session}: {ref.path}: ok")
+    for name, (shape, dtype) in written.items():
+        print(f"  {ref.path}/{name}: {shape} {dtype}")
+    return 0
 
 
 def record(args: argparse.Namespace) -> int:

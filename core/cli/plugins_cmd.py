@@ -6,7 +6,9 @@ import argparse
 import json
 from typing import Any
 
+from ..errors import Problem, ValidationError
 from ..registry import KINDS, get_registry
+from .options import parameter_facts, plain
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -15,11 +17,12 @@ def add(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=list_plugins)
     psub = p.add_subparsers(dest="plugins_command", metavar="SUBCOMMAND")
     d = psub.add_parser("doctor", help="entry points, import errors, hook validation, simulators, versions")
-    d.add_argument("--json", action="store_true")
+    # SUPPRESS: `plugins --json doctor` and `plugins doctor --json` both count
+    d.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="machine-readable output")
     d.set_defaults(func=doctor)
     s = psub.add_parser("show", help="one instrument, algorithm or step with its typed parameters")
-    s.add_argument("name")
-    s.add_argument("--json", action="store_true")
+    s.add_argument("name", help="instrument, algorithm or step name (mirrorlab plugins lists them)")
+    s.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="machine-readable output")
     s.set_defaults(func=show)
 
 
@@ -30,6 +33,8 @@ def _describe(kind: str, cls: Any) -> dict[str, Any]:
            "parameters": cls.parameters.describe()}
     if kind == "instrument":
         out["simulator"] = getattr(cls, "simulator", None) is not None
+    if kind == "step":
+        out["tables"] = dict(cls.tables)
     return out
 
 
@@ -105,28 +110,25 @@ def doctor(args: argparse.Namespace) -> int:
 
 def show(args: argparse.Namespace) -> int:
     reg = get_registry()
-    for kind in KINDS:
-        if reg.providers(kind, args.name):
-            info = _describe(kind, reg.get(kind, args.name))
-            if args.json:
-                print(json.dumps(info, indent=2, default=str))
-                return 0
-            print(f"{kind} {info['name']} {info['version']}: {info['description']}")
-            for p in info["parameters"]:
-                extra = []
-                if p["unit"]:
-                    extra.append(p["unit"])
-                if p["bounds"]:
-                    extra.append(f"{p['bounds'][0]}..{p['bounds'][1]}")
-                if p["choices"]:
-                    extra.append("|".join(map(str, p["choices"])))
-                default = "required" if p["required"] else f"default {p['default']!r}"
-                print(f"  {p['name']:<16} {p['type']:<6} {default:<20} {' '.join(extra):<18} {p['help']}")
-            for port in info.get("inputs", []):
-                print(f"  input  {port['name']}: {port['description']}")
-            for port in info.get("outputs", []):
-                print(f"  output {port['name']}: {port['description']}")
-            return 0
-    from ..errors import PluginError
-
-    raise PluginError(f"nothing named {args.name!r}; `mirrorlab plugins` lists what is installed")
+    kind = next((k for k in KINDS if reg.providers(k, args.name)), None)
+    if kind is None:
+        raise ValidationError([Problem("", f"nothing named {args.name!r}; `mirrorlab plugins` lists what is installed")])
+    info = _describe(kind, reg.get(kind, args.name))
+    if args.json:
+        print(json.dumps(info, indent=2, default=str))
+        return 0
+    print(f"{kind} {info['name']} {info['version']}: {plain(info['description'])}")
+    if info["parameters"]:
+        print("  parameters:" if kind == "algorithm" else "  settings:" if kind == "instrument" else "  keys:")
+    for p in info["parameters"]:  # name, type, unit, bounds, choices, default; the help on its own line
+        unit = f"[{p['unit']}]" if p["unit"] else ""
+        print(f"    {p['name']:<20} {p['type']:<6} {unit:<8} {'; '.join(parameter_facts(p))}")
+        print(f"    {'':<20} {plain(p['help'])}")
+    for title, key in (("tables", "tables"), ("inputs", "inputs"), ("outputs", "outputs")):
+        rows = info.get(key) or {}
+        if rows:
+            print(f"  {title}:")
+        items = rows.items() if isinstance(rows, dict) else ((r["name"], r["description"]) for r in rows)
+        for name, text in items:
+            print(f"    {name:<20} {plain(text)}")
+    return 0

@@ -17,7 +17,8 @@ from ..events import Event
 def progress_bar(enabled: bool = True) -> Iterator[Any]:
     """Yield a subscriber for :class:`~mirrorlab.core.events.EventBus` that draws progress bars.
 
-    Warnings and errors are printed above the bars. Disabled (``enabled=False`` or stderr not
+    Warnings and errors are printed above the bars, except failed algorithm runs (the command
+    raises those as its error, printed once). Disabled (``enabled=False`` or stderr not
     a terminal) it prints only warnings and errors.
     """
     console = Console(stderr=True)
@@ -32,7 +33,8 @@ def progress_bar(enabled: bool = True) -> Iterator[Any]:
             if event.source not in tasks:
                 tasks[event.source] = bars.add_task(event.source, total=total)
             bars.update(tasks[event.source], completed=event.data.get("done", 0), total=total)
-        elif event.level in ("warning", "error"):
+        elif event.level in ("warning", "error") and event.kind != "result_written":
+            # a failed run is reported by the command that asked for it (once, as its error)
             console.print(f"[{'yellow' if event.level == 'warning' else 'red'}]{event.level}[/]: "
                           f"{event.source}: {event.message}", highlight=False, soft_wrap=True)
 

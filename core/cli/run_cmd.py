@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from importlib import resources
 from pathlib import Path
 
 from ..recipes import load_recipe, run_recipe
@@ -10,34 +11,44 @@ from ..session import Session
 from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 
-#: The bundled recipe ``mirrorlab demo`` runs, relative to the repository/installation root.
-DEMO_RECIPE = Path("sessions") / "rssr_mirror.toml"
+#: The recipe ``mirrorlab demo`` runs: package data of ``mirrorlab.sessions`` (``sessions/`` in a checkout).
+DEMO_RECIPE = Path(str(resources.files("mirrorlab.sessions") / "rssr_mirror.toml"))
+#: Where ``mirrorlab demo`` writes without ``--out``, relative to the current folder.
+DEMO_OUTPUT = Path("sessions") / "out"
+
+
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
+def _common(p: argparse.ArgumentParser, out_help: str) -> None:
+    p.add_argument("--out", type=Path, metavar="FILE.h5", help=out_help)
+    add_overwrite_option(p)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a recipe value, e.g. steps.0.seconds=2 (repeatable)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def add(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="validate and run a recipe (TOML) into a new session file")
-    p.add_argument("recipe", type=Path)
-    p.add_argument("--out", type=Path, help="session file to write (default sessions/out/<recipe>-<UTC>.h5)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a recipe value, e.g. steps.0.seconds=2 (repeatable)")
-    add_overwrite_option(p)
+    p.add_argument("recipe", type=Path, help="recipe file (TOML), e.g. sessions/scan_film.toml")
+    _common(p, "session file to write (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)")
     p.add_argument("--check", action="store_true", help="only validate the recipe")
-    p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run)
-    d = sub.add_parser("demo", help="run the bundled demonstration recipe on simulated instruments")
-    d.add_argument("--out", type=Path)
-    d.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
-    add_overwrite_option(d)
-    d.add_argument("--no-progress", action="store_true")
+    d = sub.add_parser("demo", help="run the bundled demonstration recipe on simulated instruments",
+                       description=f"Run the RSSR mirror experiment recipe that comes with mirrorlab ({DEMO_RECIPE.name}, "
+                                   "see docs/demo.md) on simulated instruments, from any folder.")
+    _common(d, f"session file to write (default: {DEMO_OUTPUT}/rssr_mirror-<UTC time>.h5 in the current folder)")
     d.set_defaults(func=demo, check=False)
 
 
 def run(args: argparse.Namespace) -> int:
     recipe = load_recipe(args.recipe, args.overrides)
     if args.check:
-        print(f"{args.recipe}: ok ({len(recipe.instruments)} instruments, {len(recipe.steps)} steps)")
+        print(f"{args.recipe}: ok ({_plural(len(recipe.instruments), 'instrument')}, "
+              f"{_plural(len(recipe.steps), 'step')})")
         return 0
-    out = args.out or recipe.default_output()
+    out = args.out or recipe.default_output(getattr(args, "default_root", None))
     with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
         run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event), overwrite=args.overwrite)
     print_summary(out)
@@ -45,14 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def demo(args: argparse.Namespace) -> int:
-    root = Path.cwd()
-    recipe_path = root / DEMO_RECIPE
-    if not recipe_path.exists():
-        from ..errors import SessionError
-
-        raise SessionError(f"the demo recipe {DEMO_RECIPE} is not here; run `mirrorlab demo` from the "
-                           "root of a mirrorlab checkout")
-    args.recipe = recipe_path
+    args.recipe, args.default_root = DEMO_RECIPE, Path.cwd() / DEMO_OUTPUT
     return run(args)
 
 

@@ -11,35 +11,36 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..errors import SessionError
+from ..errors import Problem, SessionError, ValidationError
 from ..session import Session
 from ..store import files
+from .options import existing_path
 
 
 def add(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("session", help="create, inspect, check, close and export session files")
     ssub = p.add_subparsers(dest="session_command", metavar="SUBCOMMAND", required=True)
     n = ssub.add_parser("new", help="create an empty session file")
-    n.add_argument("file", type=Path)
-    n.add_argument("--operator", default="")
-    n.add_argument("--description", default="")
+    n.add_argument("file", type=Path, help="session file to create (.h5)")
+    n.add_argument("--operator", default="", help="who records (stored in the file)")
+    n.add_argument("--description", default="", help="what the session is (stored in the file)")
     n.set_defaults(func=new)
     for name, func, helptext in (("info", info, "attributes, instruments, streams, results"),
                                  ("tree", tree, "every group and dataset"),
                                  ("check", check, "consistency; exit 1 if the session is incomplete")):
         c = ssub.add_parser(name, help=helptext)
-        c.add_argument("file", type=Path)
-        c.add_argument("--json", action="store_true")
+        c.add_argument("file", type=existing_path, help="session file (.h5)")
+        c.add_argument("--json", action="store_true", help="machine-readable output")
         c.set_defaults(func=func)
     c = ssub.add_parser("close", help="mark a session closed (or --aborted), repairing a crashed file")
-    c.add_argument("file", type=Path)
+    c.add_argument("file", type=existing_path, help="session file (.h5)")
     c.add_argument("--aborted", action="store_true", help="mark it aborted (a recording that did not finish)")
     c.set_defaults(func=close)
     e = ssub.add_parser("export", help="export a stream or result dataset to CSV or .npy")
-    e.add_argument("file", type=Path)
+    e.add_argument("file", type=existing_path, help="session file (.h5)")
     e.add_argument("dataset", help="instrument/stream (e.g. cam/frame_index) or a dataset path")
     e.add_argument("--out", type=Path, help="output file (default: stdout for CSV)")
-    e.add_argument("--format", choices=("csv", "npy"), default="csv")
+    e.add_argument("--format", choices=("csv", "npy"), default="csv", help="csv (default) or npy (needs --out)")
     e.set_defaults(func=export)
 
 
@@ -131,7 +132,7 @@ def export(args: argparse.Namespace) -> int:
             times, data = s.stream(inst, stream)
     if args.format == "npy":
         if not args.out:
-            raise SessionError("--format npy needs --out FILE")
+            raise ValidationError([Problem("--format npy", "needs --out FILE (binary data does not go to the terminal)")])
         np.save(args.out, data)
         print(f"wrote {args.out}")
         return 0

@@ -300,7 +300,10 @@ class SerialInstrument(Instrument):
         port = open_port(self.port, self.baudrate)
         self.client = LineClient(port, self.device_name, self.timeout, self.on_unsolicited)
         try:
-            self.query("PING")
+            reply = self.query("PING")
+            if reply.fields != ["PONG"]:  # a reply left over from before a replug, not ours
+                raise ProtocolError(f"{self.device_name} answered PING with {' '.join(reply.fields)!r}: a "
+                                    "stale reply from before the connection; connect again")
         except DeviceError:
             self.close()
             raise

@@ -21,6 +21,12 @@ import serial
 
 from ..errors import DeviceDisconnected, DeviceReplyError, DeviceTimeout, ProtocolError
 
+try:  # pyserial's POSIX back end lets termios.error (not an OSError) out of flush() on a hung-up tty
+    from termios import error as _TermiosError
+    _PORT_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
+except ImportError:  # Windows
+    _PORT_ERRORS = (serial.SerialException, OSError)
+
 log = logging.getLogger(__name__)
 
 T = TypeVar("T")
@@ -95,7 +101,7 @@ class LineClient:
             try:
                 chunk = self.port.read(self.port.in_waiting or 1)
             # a port closed by another thread fails in many ways (socket fd -1: ValueError)
-            except (serial.SerialException, OSError, TypeError, AttributeError, ValueError) as exc:
+            except (*_PORT_ERRORS, TypeError, AttributeError, ValueError) as exc:
                 if not self._stop.is_set():
                     self._lines.put(_Hangup(exc))
                 return
@@ -170,7 +176,7 @@ class LineClient:
         try:
             self.port.write(data)
             self.port.flush()
-        except (serial.SerialException, OSError) as exc:
+        except _PORT_ERRORS as exc:
             raise DeviceDisconnected(f"{self.device}: write failed ({exc}); check the cable and power") from exc
 
     def _drain_stale(self) -> None:
@@ -250,7 +256,7 @@ class LineClient:
         self._stop.set()
         try:
             self.port.close()
-        except (serial.SerialException, OSError):
+        except _PORT_ERRORS:
             pass
         if self._reader is not threading.current_thread():
             self._reader.join(timeout=1.0)

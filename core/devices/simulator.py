@@ -243,11 +243,17 @@ class SimulatorServer:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name=f"simulator {model.kind}", daemon=True)
         self._pending = b""
+        self._connection = 0  # counts disconnects: bytes read from a dropped connection are discarded
         self.lock = threading.RLock()  # held while the model changes; tests may hold it to inspect
 
     @property
     def url(self) -> str:
         return self.endpoint.url
+
+    @property
+    def serving(self) -> bool:
+        """Whether the serving thread is alive (it ends only with :meth:`close`)."""
+        return self._thread.is_alive()
 
     def start(self) -> SimulatorServer:
         self._thread.start()
@@ -264,6 +270,7 @@ class SimulatorServer:
         with self.lock:
             self.endpoint.disconnect()
             self._pending = b""
+            self._connection += 1
 
     def close(self) -> None:
         self._stop.set()
@@ -287,12 +294,15 @@ class SimulatorServer:
     def _next_line(self, timeout: float) -> str | None:
         """The next complete command line, ``""`` on timeout, ``None`` if the driver hung up."""
         while b"\n" not in self._pending and b"\x18" not in self._pending:
-            data = self.endpoint.recv(timeout)
+            connection = self._connection
+            data = self.endpoint.recv(timeout)  # outside the lock: disconnect() may run meanwhile
             if data is None:
                 return None
             if not data:
                 return ""
-            self._pending += data
+            with self.lock:
+                if connection == self._connection:  # else: the old driver's bytes, not the new one's
+                    self._pending += data
         if self._pending.startswith(b"\x18"):
             self._pending = self._pending[1:]
             return "ABORT"

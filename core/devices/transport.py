@@ -137,6 +137,10 @@ class PtyEndpoint(Endpoint):
         self.url = str(self.link)
         self._master = -1
         self._slave = -1
+        # recv() runs in the serving thread outside the server's lock; disconnect() swaps the pty from
+        # another thread. Without this lock recv() could select on a closed descriptor (the serving
+        # thread died with EBADF) or on its number reused by the driver's reopened slave.
+        self._fd_lock = threading.Lock()
         self._open_pty()
 
     def _open_pty(self) -> None:
@@ -151,15 +155,16 @@ class PtyEndpoint(Endpoint):
         return not stop.is_set()
 
     def recv(self, timeout: float) -> bytes | None:
-        if self._master < 0:
-            return None
-        ready, _, _ = select.select([self._master], [], [], timeout)
-        if not ready:
-            return b""
-        try:
-            return os.read(self._master, 4096)
-        except OSError:
-            return b""  # no driver has the slave open right now: nothing to read
+        with self._fd_lock:
+            if self._master < 0:
+                return None
+            ready, _, _ = select.select([self._master], [], [], timeout)
+            if not ready:
+                return b""
+            try:
+                return os.read(self._master, 4096)
+            except OSError:
+                return b""  # no driver has the slave open right now: nothing to read
 
     def _send_raw(self, data: bytes) -> None:
         view = memoryview(data)
@@ -175,20 +180,22 @@ class PtyEndpoint(Endpoint):
 
     def disconnect(self) -> None:
         # Closing both ends hangs up the driver; a fresh pty replaces it behind the same link.
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                os.close(fd)
-        self._master = self._slave = -1
-        if not self._closed:
-            self._open_pty()
+        with self._fd_lock:
+            self._close_fds()
+            if not self._closed:
+                self._open_pty()
 
     def close(self) -> None:
         super().close()
+        with self._fd_lock:
+            self._close_fds()
+        self.link.unlink(missing_ok=True)
+
+    def _close_fds(self) -> None:
         for fd in (self._master, self._slave):
             if fd >= 0:
                 os.close(fd)
         self._master = self._slave = -1
-        self.link.unlink(missing_ok=True)
 
 
 class TcpEndpoint(Endpoint):
@@ -219,12 +226,12 @@ class TcpEndpoint(Endpoint):
         conn = self._conn
         if conn is None:
             return None
-        ready, _, _ = select.select([conn], [], [], timeout)
-        if not ready:
-            return b""
-        try:
+        try:  # disconnect() may close the socket meanwhile (fileno -1: ValueError): a hang-up
+            ready, _, _ = select.select([conn], [], [], timeout)
+            if not ready:
+                return b""
             data = conn.recv(4096)
-        except OSError:
+        except (OSError, ValueError):
             return None
         return data if data else None
 

@@ -70,7 +70,8 @@ class FilmScanner(SerialInstrument):
                   help="virtual-lab scene: the frames of source = virtual, and the film of a simulated "
                        "fscan (shot at `frame_rate`); empty = none"),
         Parameter("scene_frames", int, 34, bounds=(1, 100_000),
-                  help="frames of the virtual scene (film length, or frames before the virtual source ends)"),
+                  help="frames of the simulated film (the generated marker film, or the virtual-lab scene's), "
+                       "or frames before the virtual source ends"),
     )
 
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
@@ -94,7 +95,7 @@ class FilmScanner(SerialInstrument):
             from mirrorlab.instruments.virtual_lab.source import virtual_film
             film = virtual_film(values["scene"], values["frame_rate"], values["scene_frames"])
         else:
-            film = Film.generated()
+            film = Film.generated(n_frames=values["scene_frames"])
         return FilmScannerModel(film, seed=seed)
 
     @property

@@ -22,7 +22,7 @@ import h5py
 import numpy as np
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
-from mirrorlab.core.cli.options import add_parameter_options, collected
+from mirrorlab.core.cli.options import add_parameter_options, collected, plain
 from mirrorlab.core.cli.outputs import add_overwrite_option
 from mirrorlab.core.cli.progress import progress_bar
 from mirrorlab.core.clock import SessionClock
@@ -432,7 +432,7 @@ def _source_options(p: argparse.ArgumentParser) -> None:
 def add(subparsers: argparse._SubParsersAction) -> None:
     """Register ``mirrorlab kinematics`` and its subcommands."""
     k = subparsers.add_parser("kinematics", help="marker import/export, derivatives, joint angles, rigid bodies",
-                              description=__doc__.split("\n\n")[1].replace("\n", " "))
+                              description=plain(__doc__.split("\n\n")[1].replace("\n", " ")))
     sub = k.add_subparsers(dest="kinematics_command", metavar="SUBCOMMAND", required=True)
 
     p = sub.add_parser("import", help="copy a C3D/TRC/TSV marker file into a session as /markers/<name>")
@@ -440,8 +440,9 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--session", required=True, help="session file (created if absent, else added to)")
     add_overwrite_option(p, "--session")
     p.add_argument("--name", help="dataset name under /markers (default: the file's stem)")
-    p.add_argument("--format", default="auto", choices=("auto", "c3d", "trc", "tsv"))
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--format", default="auto", choices=("auto", "c3d", "trc", "tsv"),
+                   help="marker file format (default: from the suffix)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("export", help="write a session marker set as CSV or C3D")

@@ -1,7 +1,7 @@
 """PNG figures of kinematics results (matplotlib, Agg canvas; no global pyplot state).
 
-Each function draws one figure and writes it to ``path`` (parent folders are created) and returns
-the path. Angles are drawn in degrees, positions in mm, time in s.
+Each ``*_figure`` function draws one figure; each ``plot_*`` writes it to ``path`` (parent folders
+are created) and returns the path. Angles are drawn in degrees, positions in mm, time in s.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
-__all__ = ["plot_derivatives", "plot_angles", "plot_rigid"]
+__all__ = ["angles_figure", "derivatives_figure", "plot_angles", "plot_derivatives", "plot_rigid", "rigid_figure"]
 
 #: At most this many markers are drawn individually; the rest are summarised by the legend text.
 MAX_TRACES = 8
@@ -35,18 +35,7 @@ def _norm(x: np.ndarray) -> np.ndarray:
 
 def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike,
                      velocity: ArrayLike, acceleration: ArrayLike, title: str = "") -> Path:
-    """Positions (x, y, z), speed |v| and |a| of markers over time.
-
-    Parameters
-    ----------
-    path : path-like
-        PNG file to write.
-    t : array_like, shape (T,)
-        Times in s.
-    labels : sequence of str
-        Marker names (M).
-    smoothed, velocity, acceleration : array_like, shape (T, M, 3)
-        mm, mm/s, mm/s².
+    """Write :func:`derivatives_figure` to the PNG file ``path``.
 
     Examples
     --------
@@ -55,6 +44,22 @@ def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequenc
     >>> p = plot_derivatives(os.path.join(tempfile.mkdtemp(), "d.png"), t, ["A"], x, x, x)
     >>> p.stat().st_size > 0
     True
+    """
+    return _save(derivatives_figure(t, labels, smoothed, velocity, acceleration, title), path)
+
+
+def derivatives_figure(t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike, velocity: ArrayLike,
+                       acceleration: ArrayLike, title: str = "") -> Figure:
+    """Positions (x, y, z), speed |v| and |a| of markers over time.
+
+    Parameters
+    ----------
+    t : array_like, shape (T,)
+        Times in s.
+    labels : sequence of str
+        Marker names (M).
+    smoothed, velocity, acceleration : array_like, shape (T, M, 3)
+        mm, mm/s, mm/s².
     """
     tt = np.asarray(t, float)
     xs, v, a = (np.asarray(q, float) for q in (smoothed, velocity, acceleration))
@@ -75,14 +80,12 @@ def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequenc
     for axis in ax:
         axis.grid(alpha=0.3)
     fig.suptitle(title or "marker kinematics")
-    return _save(fig, path)
+    return fig
 
 
 def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str, ArrayLike],
                 title: str = "", reference: Mapping[str, tuple[ArrayLike, ArrayLike]] | None = None) -> Path:
-    """Joint angles (rad in, degrees drawn) over time, one panel per angle.
-
-    ``reference`` maps an angle name to ``(t_ref, degrees)`` drawn on the same panel (e.g. OpenSim).
+    """Write :func:`angles_figure` to the PNG file ``path``.
 
     Examples
     --------
@@ -90,6 +93,15 @@ def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str,
     >>> t = np.linspace(0, 1, 10)
     >>> plot_angles(os.path.join(tempfile.mkdtemp(), "a.png"), t, {"theta3": t}).stat().st_size > 0
     True
+    """
+    return _save(angles_figure(t, angles, title, reference), path)
+
+
+def angles_figure(t: ArrayLike, angles: Mapping[str, ArrayLike], title: str = "",
+                  reference: Mapping[str, tuple[ArrayLike, ArrayLike]] | None = None) -> Figure:
+    """Joint angles (rad in, degrees drawn) over time, one panel per angle.
+
+    ``reference`` maps an angle name to ``(t_ref, degrees)`` drawn on the same panel (e.g. OpenSim).
     """
     tt = np.asarray(t, float)
     names = list(angles)
@@ -109,20 +121,19 @@ def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str,
             axis.plot(np.asarray(tr, float), np.asarray(yr, float), "k--", lw=0.8, label="reference")
         axis.set_ylabel(f"{name} (deg)", fontsize=8)
         axis.grid(alpha=0.3)
-        if y.ndim > 1 or (reference and name in reference):
-            axis.legend(fontsize=7)
+        axis.legend(fontsize=7)
     for axis in axes[len(names):]:
         axis.set_visible(False)
     for axis in axes[max(0, len(names) - cols):len(names)]:
         axis.set_xlabel("time (s)")
         axis.tick_params(labelbottom=True)
     fig.suptitle(title or "joint angles")
-    return _save(fig, path)
+    return fig
 
 
 def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms: ArrayLike | None = None,
                H: ArrayLike | None = None, title: str = "") -> Path:
-    """Angular velocity components (rad/s), fit residual (mm) and, if given, H_G and |H_G| over time.
+    """Write :func:`rigid_figure` to the PNG file ``path``.
 
     Examples
     --------
@@ -131,6 +142,12 @@ def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms
     >>> plot_rigid(os.path.join(tempfile.mkdtemp(), "r.png"), t, w, H=w).stat().st_size > 0
     True
     """
+    return _save(rigid_figure(t, omega, rms, H, title), path)
+
+
+def rigid_figure(t: ArrayLike, omega: ArrayLike, rms: ArrayLike | None = None, H: ArrayLike | None = None,
+                 title: str = "") -> Figure:
+    """Angular velocity components (rad/s), fit residual (mm) and, if given, H_G and |H_G| over time (s)."""
     tt = np.asarray(t, float)
     w = np.asarray(omega, float)
     panels = 1 + (rms is not None) + (H is not None)
@@ -143,8 +160,9 @@ def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms
     ax[0].legend(fontsize=7, ncol=4)
     k = 1
     if rms is not None:
-        ax[k].plot(tt, np.asarray(rms, float), lw=0.9)
+        ax[k].plot(tt, np.asarray(rms, float), lw=0.9, label="rigid-fit rms")
         ax[k].set_ylabel("rigid-fit rms (mm)")
+        ax[k].legend(fontsize=7)
         k += 1
     if H is not None:
         h = np.asarray(H, float)
@@ -157,4 +175,4 @@ def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms
         axis.grid(alpha=0.3)
     ax[-1].set_xlabel("time (s)")
     fig.suptitle(title or "rigid-body motion")
-    return _save(fig, path)
+    return fig

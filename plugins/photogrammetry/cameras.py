@@ -296,7 +296,7 @@ def fit_plane_calibration(
     if model == "quadratic":
         if n < 6:
             raise CalibrationError(
-                f"only {n} calibration points; the quadratic map (eqs 3.15-3.16) has 6 unknowns per axis "
+                f"only {n} calibration point{'s' * (n != 1)}; the quadratic map (eqs 3.15-3.16) has 6 unknowns per axis "
                 "and needs at least 6 points (better: a grid of >= 9 spread over the field); digitise more points"
             )
         Phi = quadratic_design_matrix(u)
@@ -330,7 +330,7 @@ def fit_plane_calibration(
         need = 4 + (radial_terms + 1) // 2
         if n < need:
             raise CalibrationError(
-                f"only {n} calibration points; a homography with {radial_terms} radial terms needs at "
+                f"only {n} calibration point{'s' * (n != 1)}; a homography with {radial_terms} radial terms needs at "
                 f"least {need}; digitise more points"
             )
         if np.linalg.matrix_rank(np.c_[u, np.ones(n)], tol=1e-9) < 3:
@@ -514,7 +514,7 @@ def calibrate_pinhole(
         )
     nv = len(object_points_list)
     if nv < 3:
-        raise CalibrationError(f"only {nv} views; Zhang calibration needs at least 3 views of the board "
+        raise CalibrationError(f"only {nv} view{'s' * (nv != 1)}; Zhang calibration needs at least 3 views of the board "
                                "in different orientations")
     obj, img = [], []
     for v, (o, i) in enumerate(zip(object_points_list, image_points_list)):
@@ -641,8 +641,8 @@ def find_chessboard_corners(
     found = [i for i, r in enumerate(results) if r[0]]
     if not found:
         raise CalibrationError(
-            f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} images; check "
-            "pattern_size (inner corners, not squares) and the lighting"
+            f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} image{'s' * (len(items) != 1)}; check "
+            "the pattern size (inner corners COLSxROWS, not squares) and the lighting"
         )
     obj = chessboard_object_points(pattern_size, square_size)
     label = [str(it) if isinstance(it, (str, Path)) else i for i, it in enumerate(items)]

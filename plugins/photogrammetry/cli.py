@@ -52,13 +52,13 @@ def add(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--images", metavar="DIR|GLOB", help="chessboard photos (pinhole calibration)")
     src.add_argument("--points", type=Path, metavar="CSV", help="calibration points x,y,plane_x,plane_y (plane map)")
     c.add_argument("--pattern", help="chessboard inner corners COLSxROWS, e.g. 10x7")
-    c.add_argument("--square", type=float, default=1.0, help="chessboard square side [mm] (default 1)")
+    c.add_argument("--square", type=float, help="chessboard square side [mm] (required with --images)")
     c.add_argument("--detector", choices=("classic", "sb"), default="classic", help="corner detector")
     c.add_argument("--camera-center", metavar="X,Y,Z", help="camera centre F1 [mm] (plane map)")
     c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
     c.add_argument("--camera", default="cam", help="camera name (default cam)")
     c.add_argument("--json", action="store_true", help="print the camera as JSON (input of reconstruct --camera-file)")
-    c.add_argument("--no-progress", action="store_true")
+    c.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_parameter_options(c, algs["calibrate_plane"].parameters, "calibrate_plane parameters")
     add_parameter_options(c, algs["calibrate_pinhole"].parameters, "calibrate_pinhole parameters")
     c.set_defaults(func=calibrate)
@@ -69,12 +69,12 @@ def add(sub: argparse._SubParsersAction) -> None:
                     "or a CSV file (--markers; columns frame,marker,x,y and for the mirror method xv,yv). "
                     "Writes the result into SESSION (with provenance) and/or a points CSV (--out).")
     r.add_argument("session", type=Path, nargs="?", help="session file (created if missing when the data come from CSV)")
-    r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"))
+    r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"), help="reconstruction method")
     r.add_argument("--markers", type=Path, metavar="CSV", help="marker image coordinates (frame,marker,x,y[,xv,yv])")
     r.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
                    help="an algorithm input from a dataset of SESSION (e.g. real_xy=/truth/real_xy)")
     r.add_argument("--calibration", metavar="/GROUP", help="camera from a calibration group of SESSION, e.g. /calibration/cam")
-    r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from `mirrorlab calibrate --json` output")
+    r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from the output of mirrorlab calibrate --json")
     for flag, what in (("--mirror-point", "X,Y,Z point G on the mirror [mm] (mirror)"),
                        ("--normal", "X,Y,Z mirror normal toward the camera (mirror; estimated from the data if absent)"),
                        ("--lengths", "D1,D2,... link lengths [mm] (parallel, central)"),
@@ -84,7 +84,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         r.add_argument(flag, metavar="V1,V2,...|/DATASET", help=what)
     r.add_argument("--out", type=Path, metavar="CSV", help="write points (frame,marker,X,Y,Z,...) to this CSV")
     r.add_argument("--json", action="store_true", help="print a JSON summary")
-    r.add_argument("--no-progress", action="store_true")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
     for method in ("mirror", "parallel", "central"):
         add_parameter_options(r, algs[method].parameters, f"{method} parameters")
     r.set_defaults(func=reconstruct)
@@ -163,11 +163,22 @@ def calibrate(args: argparse.Namespace) -> int:
     extra: dict[str, Any] = {}
     attrs: dict[str, Any] = {}
     if args.images:
-        from .plugin import chessboard_inputs
+        from .errors import InvalidArgument
+        from .plugin import chessboard_inputs, parse_pattern
 
         algorithm = algs["calibrate_pinhole"]
+        if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
+            raise ValidationError([Problem("--images", f"no such folder {args.images!r}; give a folder of chessboard "
+                                                       "photos or a glob such as 'cal/*.png'")])
         if not args.pattern:
             raise ValidationError([Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7")])
+        try:
+            parse_pattern(args.pattern)
+        except InvalidArgument as exc:
+            raise ValidationError([Problem("--pattern", str(exc))]) from None
+        if args.square is None:
+            raise ValidationError([Problem("--square", "required with --images: the chessboard square side in mm, "
+                                                       "e.g. --square 25 (it sets the scale of the calibration)")])
         if args.square <= 0:
             raise ValidationError([Problem("--square", f"must be > 0 mm, got {args.square}")])
         params = _params_for(args, algorithm, [algs["calibrate_plane"]])
@@ -222,6 +233,20 @@ def calibrate(args: argparse.Namespace) -> int:
 
 _VECTOR_OPTIONS = {"mirror_point": "mirror_point", "normal": "normal", "lengths": "lengths", "signs": "signs",
                    "principal_point": "principal_point", "start": "start"}
+
+
+def _option_for(name: str) -> str:
+    """The command-line option(s) that provide the algorithm input ``name``."""
+    if name in _VECTOR_OPTIONS:
+        return f"--{name.replace('_', '-')} V1,V2,...|/DATASET"
+    if name in CAMERA_KEYS:
+        return "--calibration /GROUP or --camera-file FILE.json"
+    return f"--input {name}=/DATASET (or --markers FILE.csv)"
+
+
+def _describe(algorithm: type[Algorithm], name: str) -> str:
+    port = next(p for p in algorithm.inputs if p.name == name)
+    return f"{port.description} [{port.unit}]" if port.unit else port.description
 
 
 def _camera_inputs(args: argparse.Namespace, session: Session | None, algorithm: type[Algorithm]) -> dict[str, Any]:
@@ -283,6 +308,10 @@ def reconstruct(args: argparse.Namespace) -> int:
         if unknown:
             raise ValidationError([Problem(f"inputs.{k}", f"{algorithm.name} takes no input {k!r}; it takes: "
                                            f"{', '.join(sorted(declared))}") for k in unknown])
+        missing = [p.name for p in algorithm.inputs if not p.optional and p.name not in inputs]
+        if missing:
+            raise ValidationError([Problem(name, f"--method {args.method} needs {_describe(algorithm, name)}; "
+                                                 f"pass {_option_for(name)}") for name in missing])
         outputs, where = _run(s, algorithm, inputs, params, not args.no_progress)
     points = outputs["points"]
     if args.out is not None:

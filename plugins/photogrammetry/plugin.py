@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
 from mirrorlab.core.errors import PluginError, Problem, SessionError
-from mirrorlab.core.steps import Step, algorithm_tables
+from mirrorlab.core.steps import ALGORITHM_TABLES, Step, algorithm_tables
 
 from .camera_arrays import CAMERA_KEYS, camera_from_arrays, camera_kind, pinhole_arrays, plane_arrays
 from .cameras import calibrate_pinhole, find_chessboard_corners, fit_plane_calibration
@@ -530,13 +530,15 @@ class Calibrate(Step):
     name = "calibrate"
     version = "1.0.0"
     description = "calibrate a camera (plane map or pinhole) and store it under /calibration/<camera>"
+    tables = ALGORITHM_TABLES
     parameters = ParameterSet(
         Parameter("camera", str, help="camera name: the result goes to /calibration/<camera>"),
         Parameter("algorithm", str, "calibrate_plane", choices=("calibrate_plane", "calibrate_pinhole"),
                   help="calibration algorithm"),
         Parameter("images", str, "", help="folder or glob of chessboard photos (calibrate_pinhole)"),
         Parameter("pattern", str, "", help="chessboard inner corners COLSxROWS, e.g. 10x7"),
-        Parameter("square", float, 1.0, unit="mm", bounds=(0.0, None), help="chessboard square side"),
+        Parameter("square", float, 0.0, unit="mm", bounds=(0.0, None),
+                  help="chessboard square side (required with images: it sets the scale)"),
         Parameter("detector", str, "classic", choices=("classic", "sb"), help="corner detector"),
     )
 
@@ -558,6 +560,9 @@ class Calibrate(Step):
                 parse_pattern(values["pattern"])
             except InvalidArgument as exc:
                 problems.append(Problem(f"{where}.pattern", str(exc), file))
+            if values["square"] <= 0:
+                problems.append(Problem(f"{where}.square", "required with images: the chessboard square side in "
+                                                           "mm, e.g. square = 25", file))
             provided = {"object_points", "image_points", "image_size"}
         inputs, typed, more = algorithm_tables(algorithm, table, where, file, provided)
         values.update(inputs=inputs, parameters=typed)
@@ -586,6 +591,7 @@ class Reconstruct(Step):
     name = "reconstruct"
     version = "1.0.0"
     description = "reconstruct 3-D markers (parallel, central or mirror) from 2-D marker data of the session"
+    tables = ALGORITHM_TABLES
     parameters = ParameterSet(
         Parameter("method", str, "mirror", choices=("parallel", "central", "mirror"), help="reconstruction method"),
         Parameter("calibration", str, "", help="calibration group giving the camera, e.g. /calibration/cam"),

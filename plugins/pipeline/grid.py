@@ -167,12 +167,12 @@ def match_grid(xy: ArrayLike, pitch: float, references: ArrayLike, *, tol: float
         raise GridMatchError(f"references must be two rows X, Y, u, v (mm, mm, px, px), got shape {refs.shape}")
     rows0 = np.flatnonzero(np.all(np.isfinite(p), axis=1))
     if len(rows0) < min_points:
-        raise GridMatchError(f"only {len(rows0)} blobs were detected in the calibration frame (need at least "
+        raise GridMatchError(f"only {len(rows0)} blob{'s' * (len(rows0) != 1)} detected in the calibration frame (need at least "
                              f"{min_points}); check that the grid frame was recorded and the detection threshold")
     lat, acc, H = _grow(p[rows0], tol)
     if len(acc) < min_points:
-        raise GridMatchError(f"only {len(acc)} blobs fit one grid (need at least {min_points}); the blobs may "
-                             "not be a square grid, or lens distortion is too strong for a homography")
+        raise GridMatchError(f"only {len(acc)} blob{'s' * (len(acc) != 1)} fit one grid (need at least {min_points}); "
+                             "the blobs may not be a square grid, or lens distortion is too strong for a homography")
     image = p[rows0[acc]]
     ref_lat = []
     for k, (X, Y, u, v) in enumerate(refs):

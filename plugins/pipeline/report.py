@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from mirrorlab.core.store import schema
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
@@ -32,8 +34,9 @@ from .errors import PipelineError
 if TYPE_CHECKING:
     from mirrorlab.core.session import Session
 
-__all__ = ["THESIS_SYSTEMATIC_MM", "DemoReport", "DigitisingError", "build_report", "digitising_error",
-           "format_report", "pair_is_correct", "scan_pixels", "write_figures"]
+__all__ = ["THESIS_SYSTEMATIC_MM", "DemoReport", "DigitisingError", "angular_figure", "build_report",
+           "digitising_error", "format_report", "kinematic_rms", "measured_frames", "pair_is_correct", "scan_pixels",
+           "trajectories_figure", "write_figures"]
 
 #: Systematic error per axis (X, Y, Z) of the thesis's RSSR mirror experiment, mm.
 THESIS_SYSTEMATIC_MM = (1.3, -6.9, 10.9)
@@ -42,6 +45,8 @@ SCAN_WIDTH, SCAN_LINES = 512, 384
 #: A detection farther than this from a true image is not its measurement (pairing check and
 #: digitising error), px. The film path's worst image error is ~2 px, the markers are >= 10 px apart.
 DIGITISE_GATE_PX = 3.0
+#: Frames at each end whose acceleration is the smoothing spline's end condition (0), not measured.
+ACCEL_END_FRAMES = 1
 
 FloatArray = NDArray[np.float64]
 
@@ -147,6 +152,43 @@ def digitising_error(detected: FloatArray, true_xy: FloatArray, gate: float = DI
         return DigitisingError(np.full(2, np.nan), np.full(2, np.nan), float("nan"), 0, visible, gate)
     return DigitisingError(np.sqrt(np.mean(e ** 2, axis=0)), e.mean(axis=0), float(np.sqrt(np.mean(np.sum(e ** 2, 1)))),
                            int(len(e)), visible, gate)
+
+
+def measured_frames(key: str, frames: int) -> NDArray[np.bool_]:
+    """Frames whose ``key`` (``theta_dot``, ``phi_ddot``...) is a measurement, not an end condition.
+
+    The GCV smoothing spline that ``rssr_angles`` differentiates is a natural cubic spline: its
+    second derivative is 0 at the first and last sample by construction, so the accelerations of
+    the first and last :data:`ACCEL_END_FRAMES` frames are not measured. Velocities are.
+
+    Examples
+    --------
+    >>> measured_frames("phi_ddot", 5).tolist(), measured_frames("phi_dot", 3).tolist()
+    ([False, True, True, True, False], [True, True, True])
+    """
+    keep = np.ones(frames, bool)
+    if key.endswith("_ddot"):
+        keep[:ACCEL_END_FRAMES] = keep[frames - ACCEL_END_FRAMES:] = False
+    return keep
+
+
+def kinematic_rms(measured: dict[str, FloatArray], analytic: dict[str, FloatArray]) -> dict[str, float]:
+    """RMS of measured minus analytic angular velocity (rad/s) and acceleration (rad/s²).
+
+    Only measured frames count (:func:`measured_frames`: not the accelerations' end frames).
+
+    Examples
+    --------
+    >>> a = {"phi_ddot": np.array([0.3, 0.1, 0.2, 0.3])}
+    >>> kinematic_rms({"phi_ddot": np.array([0.0, 0.1, 0.2, 0.0])}, a)
+    {'phi_ddot': 0.0}
+    """
+    out = {}
+    for k in ("theta_dot", "phi_dot", "theta_ddot", "phi_ddot"):
+        if k in analytic and k in measured:
+            d = (measured[k] - analytic[k])[measured_frames(k, len(analytic[k]))]
+            out[k] = float(np.sqrt(np.nanmean(d ** 2))) if np.isfinite(d).any() else float("nan")
+    return out
 
 
 @dataclass
@@ -282,11 +324,7 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     time = np.asarray(markers["time"], float)
     ag = f[f"truth/{instrument}/analytic"]
     analytic = {k: ag[k][()] for k in ("theta", "theta_dot", "theta_ddot", "phi", "phi_dot", "phi_ddot") if k in ag}
-    k_rms = {}
-    for k in ("theta_dot", "phi_dot", "theta_ddot", "phi_ddot"):
-        if k in analytic and k in kin:
-            d = kin[k] - analytic[k]
-            k_rms[k] = float(np.sqrt(np.nanmean(d ** 2))) if np.isfinite(d).any() else float("nan")
+    k_rms = kinematic_rms(kin, analytic)
     return DemoReport(str(session.path), labels, F, float(markers["frame_period"]), time, measured, true_pos, rms,
                       have.sum(axis=0).astype(np.int64), systematic, correct, int(decided.sum()), visible,
                       cal.get("rms", float("nan")), cal.get("points", 0), cal.get("model", ""), normal, angle,
@@ -335,62 +373,75 @@ def format_report(r: DemoReport) -> str:
         "  systematic error per axis (mean measured - true):   X         Y         Z",
         f"    this run                                     {sx:+8.3f}  {sy:+8.3f}  {sz:+8.3f} mm",
         f"    thesis (film, 1984)                          {tx:+8.1f}  {ty:+8.1f}  {tz:+8.1f} mm",
-        "  kinematics, RMS of measured - analytic:",
+        f"  kinematics, RMS of measured - analytic (accelerations without {ACCEL_END_FRAMES} frame(s) at each "
+        "end: the spline's end condition sets them to 0):",
     ]
     for k, unit in (("theta_dot", "rad/s"), ("phi_dot", "rad/s"), ("theta_ddot", "rad/s²"), ("phi_ddot", "rad/s²")):
         if k in r.kinematic_rms:
-            scale = float(np.sqrt(np.nanmean(r.analytic[k] ** 2)))
+            scale = float(np.sqrt(np.nanmean(r.analytic[k][measured_frames(k, len(r.analytic[k]))] ** 2)))
             lines.append(f"    {k:<11} {r.kinematic_rms[k]:.4f} {unit:<7} (analytic RMS {scale:.4f})")
     lines.append("  figures:")
     lines += [f"    {p}" for p in r.figures]
     return "\n".join(lines)
 
 
-def write_figures(r: DemoReport, folder: str | Path) -> list[str]:
-    """``trajectories.png`` (measured vs true X, Y, Z per marker) and ``angular.png`` (angular
-    velocity and acceleration, measured vs analytic) in ``folder``; returns their paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    t = r.time
-    fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+def trajectories_figure(r: DemoReport) -> Figure:
+    """X, Y and Z (mm) of every marker over time (s): measured points over the true curves."""
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     for a, axis in enumerate("XYZ"):
         for m, label in enumerate(r.labels):
-            line, = axes[a].plot(t, r.truth[:, m, a], "-", lw=1.2, label=f"{label} true")
-            axes[a].plot(t, r.measured[:, m, a], "o", ms=3.5, color=line.get_color(), label=f"{label} measured")
+            line, = axes[a].plot(r.time, r.truth[:, m, a], "-", lw=1.2, label=f"{label} true")
+            axes[a].plot(r.time, r.measured[:, m, a], "o", ms=3.5, color=line.get_color(), label=f"{label} measured")
         axes[a].set_ylabel(f"{axis} (mm)")
         axes[a].grid(alpha=0.3)
     axes[0].legend(ncol=2, fontsize=8)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle("RSSR spherical joints: measured (mirror method) vs true")
-    fig.tight_layout()
-    p1 = out / "trajectories.png"
-    fig.savefig(p1, dpi=110)
-    plt.close(fig)
+    return fig
 
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), sharex=True)
-    panels = (("theta_dot", "input angular velocity (rad/s)"), ("phi_dot", "output angular velocity (rad/s)"),
-              ("theta_ddot", "input angular acceleration (rad/s²)"),
-              ("phi_ddot", "output angular acceleration (rad/s²)"))
-    for ax, (k, title) in zip(axes.ravel(), panels, strict=True):
+
+def angular_figure(r: DemoReport) -> Figure:
+    """Input and output angular velocity (rad/s) and acceleration (rad/s²) over time (s).
+
+    Measured values against the analytic motion and the model evaluated at the measured θ. The
+    accelerations of the end frames (:func:`measured_frames`) are drawn hollow: they are the
+    spline's end condition, not measurements, and are left out of the printed RMS.
+    """
+    fig = Figure(figsize=(10, 7), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True)
+    panels = (("theta_dot", "input crank", "θ̇ (rad/s)"), ("phi_dot", "output rocker", "φ̇ (rad/s)"),
+              ("theta_ddot", "input crank", "θ̈ (rad/s²)"), ("phi_ddot", "output rocker", "φ̈ (rad/s²)"))
+    for ax, (k, title, ylabel) in zip(axes.ravel(), panels, strict=True):
         if k in r.analytic:
-            ax.plot(t, r.analytic[k], "-", color="k", lw=1.2, label="analytic")
+            ax.plot(r.time, r.analytic[k], "-", color="k", lw=1.2, label="analytic")
+        if "model_" + k in r.kinematics:
+            ax.plot(r.time, r.kinematics["model_" + k], "--", color="C1", lw=1.0, label="model at measured θ")
         if k in r.kinematics:
-            ax.plot(t, r.kinematics[k], "o", ms=3.5, label="measured")
-        model = "model_" + k
-        if model in r.kinematics:
-            ax.plot(t, r.kinematics[model], "--", lw=1.0, label="model at measured θ")
+            keep = measured_frames(k, len(r.kinematics[k]))
+            ax.plot(r.time[keep], r.kinematics[k][keep], "o", color="C0", ms=3.5, label="measured")
+            if not keep.all():
+                ax.plot(r.time[~keep], r.kinematics[k][~keep], "o", mfc="none", color="C0", ms=5,
+                        label="end frames: spline end condition (not in RMS)")
         ax.set_title(title, fontsize=10)
+        ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=8)
     for ax in axes[1]:
         ax.set_xlabel("time (s)")
-    fig.tight_layout()
-    p2 = out / "angular.png"
-    fig.savefig(p2, dpi=110)
-    plt.close(fig)
-    return [str(p1), str(p2)]
+    handles = {h.get_label(): h for ax in axes.ravel() for h in ax.get_lines()}
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=len(handles), fontsize=8)
+    fig.suptitle("RSSR angular velocity and acceleration: measured vs analytic")
+    return fig
+
+
+def write_figures(r: DemoReport, folder: str | Path) -> list[str]:
+    """``trajectories.png`` (:func:`trajectories_figure`) and ``angular.png`` (:func:`angular_figure`)
+    in ``folder``; returns their paths."""
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, fig in (("trajectories.png", trajectories_figure(r)), ("angular.png", angular_figure(r))):
+        FigureCanvasAgg(fig)
+        fig.savefig(out / name, dpi=110)
+        paths.append(str(out / name))
+    return paths

@@ -88,7 +88,7 @@ def test_invalid_toml_and_missing_file(tmp_path: Path) -> None:
     broken = tmp_path / "broken.toml"
     broken.write_text("[session\n")
     proc = run_cli("run", str(broken))
-    assert proc.returncode == 2 and f"{broken}: -: not valid TOML" in proc.stderr
+    assert proc.returncode == 2 and f"{broken}: not a TOML recipe" in proc.stderr
     proc = run_cli("run", str(tmp_path / "missing.toml"))
     assert proc.returncode == 2 and "cannot read the recipe" in proc.stderr
 
@@ -145,7 +145,7 @@ def test_session_new_and_errors(tmp_path: Path) -> None:
     again = run_cli("session", "new", str(path))
     assert again.returncode == 1 and "already exists" in again.stderr
     missing = run_cli("session", "info", str(tmp_path / "nope.h5"))
-    assert missing.returncode == 1 and "no session file" in missing.stderr
+    assert missing.returncode == 2 and "no such file or folder" in missing.stderr
     assert run_cli("session").returncode == 2
 
 

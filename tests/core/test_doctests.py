@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["mirrorlab.core.params", "mirrorlab.core.session"]
+MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -70,7 +70,7 @@ def test_plugins_show_prints_typed_parameters(acme_site: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     assert "rate" in proc.stdout and "Hz" in proc.stdout and "1.0..1000.0" in proc.stdout
     missing = run_cli("plugins", "show", "nope")
-    assert missing.returncode == 1 and "nothing named 'nope'" in missing.stderr
+    assert missing.returncode == 2 and "nothing named 'nope'" in missing.stderr
 
 
 def test_add_plugin_at_run_time_all_or_nothing() -> None:

@@ -7,7 +7,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from mirrorlab.core import DeviceReplyError, DeviceTimeout, ProtocolError
+from mirrorlab.core import DeviceDisconnected, DeviceReplyError, DeviceTimeout, ProtocolError
 from mirrorlab.core.devices import Delay, LineClient, LineSimulator, SimulatorServer, open_port
 
 
@@ -73,3 +73,34 @@ def test_garbage_is_reported_then_the_line_recovers(client: tuple[LineClient, Si
     server.endpoint.faults.garble = 0.0
     assert ProtocolError in errors and c.garbage_lines > 0
     assert c.query("*IDN?").fields[0] == "TEST"
+
+
+@pytest.mark.parametrize("transport", ["pty", "tcp"])
+def test_the_simulator_survives_disconnects_racing_its_reads(transport: str) -> None:
+    """Unplugging from another thread while the server waits for bytes must never kill the server.
+
+    (Over a pty the serving thread once selected on the descriptor that ``disconnect`` had just
+    closed, died with EBADF, and every reconnect then timed out.)
+    """
+    with SimulatorServer(Slow(), transport) as server:
+        for _ in range(300):
+            server.disconnect()
+        assert server.serving, "the simulator's serving thread died"
+        c = LineClient(open_port(server.url), "test device", timeout=2.0)
+        try:
+            assert c.query("PING").fields == ["PONG"]
+        finally:
+            c.close()
+
+
+def test_writing_to_a_hung_up_pty_is_a_disconnect() -> None:
+    """pyserial's flush() raises termios.error on a hung-up pty; the client reports a disconnect."""
+    with SimulatorServer(Slow(), "pty") as server:
+        c = LineClient(open_port(server.url), "test device", timeout=0.5)
+        try:
+            server.disconnect()
+            for _ in range(3):
+                with pytest.raises((DeviceDisconnected, DeviceTimeout)):
+                    c.query("PING")
+        finally:
+            c.close()

@@ -102,7 +102,8 @@ def test_3d_errors_and_time_base(film_run: tuple[Path, str]) -> None:
         assert rms.shape == (2,) and np.all(rms < 6.0), rms
         # the frames were shot at 3 frames/s; the stamps are when the scanner digitised them
         stamps = f["instruments/rssr/frames/time"][()]
-        assert abs(np.median(np.diff(stamps)) - 1 / 3) > 0.01
+        # (their spacing depends on the machine's load and may come near 1/3 s, but never to the microsecond)
+        assert not np.allclose(stamps - stamps[0], np.arange(len(stamps)) / 3.0, atol=1e-6)
         assert f["results/rssr_markers/run-0001/frame_period"][()] == pytest.approx(1 / 3, abs=1e-12)
         assert np.allclose(f["results/rssr_markers/run-0001/time"][()], np.arange(FRAMES) / 3.0)
         keys = schema.get_json(f["report"], "kinematic_keys")

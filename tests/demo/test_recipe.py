@@ -27,9 +27,11 @@ STAGES = ("lab_survey", "detect_markers", "match_grid", "calibrate_plane", "spli
 
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    out = tmp_path_factory.mktemp("demo") / "rssr.h5"
-    proc = run_cli("run", str(RECIPE), "--out", str(out), "--no-progress", *SHORT)
+    """`mirrorlab demo` (shortened) from a folder that is not a checkout: the recipe is package data."""
+    cwd = tmp_path_factory.mktemp("demo")
+    proc = run_cli("demo", "--no-progress", *SHORT, cwd=cwd)
     assert proc.returncode == 0, proc.stderr + proc.stdout
+    (out,) = (cwd / "sessions" / "out").glob("rssr_mirror-*.h5")
     return out, proc.stdout
 
 
@@ -39,10 +41,13 @@ def test_recipe_validates() -> None:
     assert "rssr_mirror.toml: ok (2 instruments, 17 steps)" in proc.stdout
 
 
-def test_demo_command_runs_this_recipe() -> None:
+def test_demo_command_runs_this_recipe(tmp_path: Path) -> None:
     from mirrorlab.core.cli.run_cmd import DEMO_RECIPE
 
-    assert DEMO_RECIPE == Path("sessions") / "rssr_mirror.toml" and (REPO / DEMO_RECIPE).exists()
+    assert DEMO_RECIPE.read_bytes() == RECIPE.read_bytes()
+    helped = run_cli("demo", "--help", cwd=tmp_path)
+    text = " ".join(helped.stdout.split())
+    assert helped.returncode == 0 and "rssr_mirror.toml" in text and "from any folder" in text
 
 
 def test_bad_override_is_a_usage_error() -> None:

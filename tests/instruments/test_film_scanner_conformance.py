@@ -8,5 +8,5 @@ from mirrorlab.instruments.film_scanner import FilmScanner
 
 class TestFilmScannerConformance(InstrumentConformance):
     instrument_class = FilmScanner
-    settings = {"lines": 64}
-    acquire_seconds = 2.0
+    # A long film (rendered lazily, frame by frame) so that the streaming checks never meet its end.
+    settings = {"lines": 64, "scene_frames": 10_000}

@@ -163,3 +163,27 @@ def test_degenerate_geometry_exits_1_naming_frame_and_marker(tmp_path: Path) -> 
     assert "DegenerateGeometry: frame 1 marker 1:" in r.stderr and "rays are parallel" in r.stderr
     with Session.open(session) as s:  # the failed run is stored, with its error
         assert [ref.status for ref in s.results("reconstruct_mirror")] == ["failed"]
+
+
+def test_chessboard_square_is_required(tmp_path: Path) -> None:
+    """No silent 1 mm squares: a calibration without --square would be off in scale by the square size."""
+    r = run_cli("calibrate", "--images", str(CHESS), "--pattern", "10x7", "--json", "--no-progress")
+    assert r.returncode == 2
+    assert "--square: required with --images: the chessboard square side in mm" in r.stderr
+
+
+def test_missing_mirror_point_names_the_option(tmp_path: Path) -> None:
+    cam = pinhole_camera()
+    flat = markers(2, 2, seed=3).reshape(-1, 3)
+    path = tmp_path / "s.h5"
+    with Session.create(path) as s:
+        s.write_group("calibration/cam", pinhole_arrays(cam))
+        s.write_group("m", {"real_xy": cam.project(flat).reshape(2, 2, 2),
+                            "virtual_xy": cam.project(reflect(flat, G, NORMAL)).reshape(2, 2, 2)})
+    r = run_cli("reconstruct", str(path), "--method", "mirror", "--calibration", "/calibration/cam",
+                "--input", "real_xy=/m/real_xy", "--input", "virtual_xy=/m/virtual_xy", "--no-progress")
+    assert r.returncode == 2
+    assert ("mirror_point: --method mirror needs (3,) point G on the mirror [mm]; "
+            "pass --mirror-point V1,V2,...|/DATASET") in r.stderr
+    with Session.open(path) as s:  # refused before running: nothing stored
+        assert s.results("reconstruct_mirror") == []

@@ -81,7 +81,7 @@ parameters = { triangulation = "best" }
     with pytest.raises(ValidationError) as info:
         load_recipe(recipe)
     text = str(info.value)
-    for expected in ("steps.0.images", "steps.0.pattern", "steps.0.inputs.image_xy", "steps.0.inputs.bogus",
+    for expected in ("steps.0.images", "steps.0.pattern", "steps.0.square", "steps.0.inputs.image_xy", "steps.0.inputs.bogus",
                      "steps.1.inputs.real_xy", "steps.1.parameters.triangulation"):
         assert expected in text, text
 

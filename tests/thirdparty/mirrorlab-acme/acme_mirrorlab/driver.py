@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import SerialInstrument, Status
+from mirrorlab.core.devices import SerialInstrument
 
 from .model import AcmeThermometerModel
 
@@ -71,6 +71,3 @@ class AcmeThermometer(SerialInstrument):
     def read(self) -> dict[str, np.ndarray]:
         reply = self.query("READ?")
         return {"temperature": np.array([float(reply.field(1, "mK")) / 1000.0])}
-
-    def status(self) -> Status:
-        return super().status()

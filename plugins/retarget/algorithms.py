@@ -1,0 +1,184 @@
+"""Framework adapters: the ``retarget`` algorithm and the ``retarget`` recipe step.
+
+=============  =====================================  =========================================
+name           inputs                                 outputs
+=============  =====================================  =========================================
+``retarget``   joints (T, n + 1, 3) mm                q (T, dof) rad, f (T,) mm², joints
+               (algorithm, ``Session.run``)           (T, N + 1, 3) mm, residuals (T, P) mm,
+                                                      iterations, restarted, pairs
+``retarget``   a BVH / C3D / TRC / TSV file or a      group ``/retarget/<name>``: the input
+               session marker set (recipe step,        joints and time, and the filter's
+               streamed through the filter)            outputs per frame
+=============  =====================================  =========================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
+from mirrorlab.core.errors import Problem
+from mirrorlab.core.steps import Step
+
+from .approximate import approximate, input_chain
+from .chain import Chain
+from .errors import ChainDefinitionError, SourceError
+from .sources import Motion, read_bvh_chain, read_marker_chain, session_marker_chain
+from .stream import Compute, CSVSink, FilterStats, MemorySink, RetargetFilter, Sink, poses
+
+if TYPE_CHECKING:
+    from mirrorlab.core import Session
+    from mirrorlab.core.registry import Registry
+
+__all__ = ["Retarget", "RetargetStep", "chain_from", "read_motion", "stream_motion", "CHAIN_PARAMETERS"]
+
+CHAIN_PARAMETERS = (
+    Parameter("lengths", str, help="output link lengths in mm, comma-separated, e.g. '295.9,229.5'"),
+    Parameter("axes", str, help="output joint axes, one string per joint, comma-separated, e.g. 'zyx,y'"),
+    Parameter("method", str, "lm", choices=("lm", "paper"),
+              help="lm: warm-started Levenberg-Marquardt with multistart fallback; paper: per-joint Newton sweeps"),
+    Parameter("sweeps", int, 3, bounds=(0, None), help="paper: Newton sweeps per frame (0: until converged)"),
+    Parameter("max_iter", int, 20, bounds=(1, None), help="lm: iterations per frame"),
+    Parameter("distance", str, "segment", choices=("segment", "line"), help="distance of a joint to an input arm"),
+)
+
+
+def _floats(text: str, name: str) -> list[float]:
+    try:
+        return [float(x) for x in str(text).replace(";", ",").split(",") if x.strip()]
+    except ValueError:
+        raise ChainDefinitionError(f"parameter {name} must be comma-separated numbers, got {text!r}") from None
+
+
+def chain_from(params: Mapping[str, Any]) -> Chain:
+    """The output :class:`Chain` of the ``lengths`` (mm) and ``axes`` parameters (base on the input root).
+
+    Examples
+    --------
+    >>> chain_from({"lengths": "300, 250", "axes": "zyx, y"}).dof
+    4
+    """
+    return Chain(_floats(params["lengths"], "lengths"), [a.strip() for a in str(params["axes"]).split(",") if a.strip()])
+
+
+def read_motion(path: Path, joints: list[str], scale: float = 1.0, skip: int = 0, dataset: str = "") -> Motion:
+    """A chain's joint positions from a BVH file, a marker file or a session (``dataset`` under /markers)."""
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
+        return read_bvh_chain(path, joints, scale, skip)
+    if suffix in (".h5", ".hdf5"):
+        if not dataset:
+            raise SourceError(f"{path} is a session: name its marker set (dataset) under /markers")
+        m = session_marker_chain(path, dataset, joints)
+    else:
+        m = read_marker_chain(path, joints)
+    if scale != 1.0 or skip:
+        m = Motion(m.joints[skip:] * scale, m.time[skip:], m.rate, m.names, m.source)
+    return m
+
+
+def stream_motion(motion: Motion, chain: Chain, params: Mapping[str, Any], sinks: list[Sink],
+                  realtime: bool = False, rate: float = 0.0) -> tuple[FilterStats, MemorySink]:
+    """Stream a recording through the filter at ``rate`` Hz (default: the recording's); returns the
+    counters and a memory sink holding every published frame."""
+    memory = MemorySink()
+    compute = Compute(chain, input_chain(motion.joints).lengths, params["method"], sweeps=params["sweeps"] or 3,
+                      max_iter=params["max_iter"], distance=params["distance"])
+    stats = RetargetFilter(compute, rate or motion.rate, [memory, *sinks]).run(poses(motion.joints, motion.time),
+                                                                               realtime)
+    return stats, memory
+
+
+class Retarget(Algorithm):
+    """Approximate an input chain by an output chain in every frame (spec retargeting.md)."""
+
+    name = "retarget"
+    version = "0.1.0"
+    description = "chain shape approximation: n-DOF input joints -> m-DOF output chain angles (Toguro & Hashimoto)"
+    parameters = ParameterSet(*CHAIN_PARAMETERS)
+    inputs = (Port("joints", "(T, n + 1, 3) input joint positions, root to tip; NaN where missing", "mm"),)
+    outputs = (Port("q", "(T, dof) output joint angles, unwrapped", "rad"),
+               Port("f", "(T,) evaluation function", "mm²"),
+               Port("joints", "(T, N + 1, 3) output joint positions", "mm"),
+               Port("residuals", "(T, P) distance of each paired output joint to its input arm", "mm"),
+               Port("iterations", "(T,) LM iterations or Newton sweeps per frame"),
+               Port("restarted", "(T,) the multistart ran"),
+               Port("pairs", "(P, 2) output joint, input arm"))
+
+    def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
+        context.progress(0, 1, "retargeting")
+        res = approximate(np.asarray(inputs["joints"], float), chain_from(params), params["method"],
+                          sweeps=params["sweeps"] or None, max_iter=params["max_iter"], distance=params["distance"])
+        context.progress(1, 1, "done")
+        return {"q": res.q, "f": res.f, "joints": res.joints, "residuals": res.residuals,
+                "iterations": res.iterations, "restarted": res.restarted, "pairs": res.pairs}
+
+
+class RetargetStep(Step):
+    """Recipe step ``retarget``: stream a recorded chain through the filter into ``/retarget/<name>``.
+
+    .. code-block:: toml
+
+        [[steps]]
+        action = "retarget"
+        file = "../../shared/data/bvh/01_01.bvh"   # relative to the recipe; .bvh, .c3d, .trc, .tsv, .h5
+        joints = "RightArm,RightForeArm,RightHand,RFingers"
+        scale = 56.444                             # mm per file unit
+        skip = 1                                   # drop leading frames (CMU T-pose)
+        lengths = "295.9,229.5"
+        axes = "zyx,y"
+    """
+
+    name = "retarget"
+    version = "0.1.0"
+    description = "stream a BVH / marker-file / session chain through the retargeting filter into the session"
+    parameters = ParameterSet(
+        Parameter("file", Path, help="motion file (.bvh, .c3d, .trc, .tsv) or session (.h5)"),
+        Parameter("joints", str, help="input joints root to tip, comma-separated (markers: 'A+B' = midpoint)"),
+        Parameter("dataset", str, "", help="marker set under /markers when file is a session"),
+        Parameter("scale", float, 1.0, bounds=(0.0, None), help="mm per file length unit (CMU BVH: 56.444)"),
+        Parameter("skip", int, 0, bounds=(0, None), help="leading frames to drop"),
+        Parameter("name", str, "", help="group under /retarget (default: the file's stem)"),
+        Parameter("csv", str, "", help="also write the frames to this CSV file (relative to the recipe)"),
+        *CHAIN_PARAMETERS,
+    )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        values, problems = cls.parameters.problems(table, where, file)
+        if problems:
+            return values, problems
+        here = Path(file).resolve().parent if file else Path.cwd()
+        if not values["file"].is_absolute():
+            values["file"] = here / values["file"]
+        if values["csv"] and not Path(values["csv"]).is_absolute():
+            values["csv"] = str(here / values["csv"])
+        if not values["file"].is_file():
+            problems.append(Problem(f"{where}.file", f"no such motion file {str(values['file'])!r}", file))
+        try:
+            chain_from(values)
+        except ChainDefinitionError as exc:
+            problems.append(Problem(f"{where}.lengths", str(exc), file))
+        return values, problems
+
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
+        motion = read_motion(Path(values["file"]), [j.strip() for j in values["joints"].split(",")], values["scale"],
+                             values["skip"], values["dataset"])
+        chain = chain_from(values)
+        sinks: list[Sink] = [CSVSink(values["csv"], chain.dof)] if values["csv"] else []
+        stats, memory = stream_motion(motion, chain, values, sinks)
+        name = values["name"] or Path(values["file"]).stem
+        out = memory.arrays()
+        session.write_group(f"retarget/{name}", {"input_joints": motion.joints, "input_time": motion.time, **out},
+                            {"source": motion.source, "joints": ",".join(motion.names), "lengths": values["lengths"],
+                             "axes": values["axes"], "method": values["method"], "rate_hz": motion.rate,
+                             "units": "joints mm, q rad, f mm2, residuals mm, time s", **stats.summary()})
+        s = stats.summary()
+        session.events.emit("info", "retarget", "retargeted",
+                            f"{motion.source}: {s['published']} frames, mean f {float(np.nanmean(out['f'])):.4g} mm², "
+                            f"compute {s['latency_mean_ms']:.2f} ms mean, {s['missed_deadlines']} missed deadlines "
+                            f"at {motion.rate:g} Hz")

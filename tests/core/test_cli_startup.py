@@ -1,0 +1,120 @@
+"""Lazy start-up: `--version` and `--help` import no plugin and no heavy library; commands still work.
+
+The timings themselves live in ``benchmarks/bench_cli_startup.py`` (no timed unit tests); here we
+check the cause of slowness, what is imported, in a fresh interpreter.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from tests.support import REPO, pip_install_target, run_cli
+
+#: Modules (and their sub-modules) that must not be imported to print the version or the top-level
+#: help: heavy libraries, any plugin sub-package or instrument, the session machinery. The light
+#: ``mirrorlab.plugins`` package itself is read for its command table.
+HEAVY = ("numpy", "scipy", "h5py", "cv2", "matplotlib", "rich", "mirrorlab.plugins.", "mirrorlab.instruments",
+         "mirrorlab.core.session", "mirrorlab.core.algorithms")
+
+PROBE = textwrap.dedent("""
+    import json, sys
+    from mirrorlab.core.cli import main
+    try:
+        code = main(sys.argv[1:])
+    except SystemExit as exc:
+        code = exc.code
+    print("MODULES " + json.dumps(sorted(sys.modules)))
+    sys.exit(code)
+""")
+
+
+def _imported(*args: str) -> tuple[int, str, set[str]]:
+    proc = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, cwd=REPO, timeout=60)
+    head, _, modules = proc.stdout.rpartition("MODULES ")
+    return proc.returncode, head, set(json.loads(modules))
+
+
+@pytest.mark.parametrize("args", [("--version",), ("--help",), ()])
+def test_version_and_help_import_nothing_heavy(args: tuple[str, ...]) -> None:
+    code, out, modules = _imported(*args)
+    assert code == (2 if not args else 0)
+    heavy = sorted(m for m in modules if any(m == h or m.startswith(h if h.endswith(".") else h + ".") for h in HEAVY))
+    assert not heavy, heavy
+    if args != ("--version",):
+        for name in ("calibrate", "reconstruct", "kinematics", "session", "run", "demo", "analyze", "record"):
+            assert re.search(rf"^ +{name}( |$)", out, re.M), (name, out)
+
+
+def test_one_command_imports_only_its_own_plugin() -> None:
+    code, out, modules = _imported("kinematics", "--help")
+    assert code == 0 and "import" in out and "derivatives" in out
+    assert "mirrorlab.plugins.kinematics.cli" in modules
+    assert not any(m.startswith(("mirrorlab.plugins.photogrammetry", "mirrorlab.plugins.markers")) for m in modules)
+
+
+def test_light_table_matches_the_real_parsers() -> None:
+    """Every built-in command's light entry (name, help) is what its parser declares."""
+    from mirrorlab.core.cli import build_parser, commands
+
+    full = build_parser()
+    sub = next(a for a in full._actions if a.dest == "command")
+    real = {a.dest: a.help for a in sub._choices_actions}
+    light = {c.name: c.help for c in commands.builtin_commands()}
+    assert real == light
+
+
+PLUGIN = '''
+from mirrorlab.core import hookimpl
+
+
+def _hello(args):
+    print(f"hello {args.name}")
+    return 0
+
+
+@hookimpl
+def mirrorlab_add_cli_commands(subparsers):
+    p = subparsers.add_parser("hello", help="say hello (a third-party command)")
+    p.add_argument("--name", default="world")
+    p.set_defaults(func=_hello)
+'''
+
+
+@pytest.fixture(scope="module")
+def hello_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    src = tmp_path_factory.mktemp("hello-src")
+    (src / "hello_mirrorlab").mkdir()
+    (src / "hello_mirrorlab" / "__init__.py").write_text(PLUGIN)
+    (src / "pyproject.toml").write_text(textwrap.dedent("""
+        [build-system]
+        requires = ["setuptools>=61"]
+        build-backend = "setuptools.build_meta"
+        [project]
+        name = "mirrorlab-hello"
+        version = "0.1.0"
+        [project.entry-points.mirrorlab]
+        hello = "hello_mirrorlab"
+        [tool.setuptools]
+        packages = ["hello_mirrorlab"]
+    """))
+    return pip_install_target(src, tmp_path_factory.mktemp("hello-site"))
+
+
+def test_third_party_commands_still_work(hello_site: Path) -> None:
+    ran = run_cli("hello", "--name", "lab", sites=(hello_site,))
+    assert ran.returncode == 0 and ran.stdout == "hello lab\n", ran.stderr
+    listed = run_cli("--help", sites=(hello_site,))
+    assert listed.returncode == 0 and "say hello (a third-party command)" in listed.stdout
+    assert re.search(r"^ +calibrate( |$)", listed.stdout, re.M)
+    unknown = run_cli("helo", sites=(hello_site,))
+    assert unknown.returncode == 2 and "invalid choice: 'helo'" in unknown.stderr
+    assert "hello" in unknown.stderr and "calibrate" in unknown.stderr
+    builtin = run_cli("plugins", sites=(hello_site,))
+    assert builtin.returncode == 0 and "filter" in builtin.stdout

@@ -1,0 +1,172 @@
+"""Property tests of spec retargeting.md §9 (hypothesis), plus input validation and joint limits."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from mirrorlab.plugins.retarget import (
+    Chain,
+    ChainDefinitionError,
+    InputChainError,
+    LengthDriftWarning,
+    Objective,
+    approximate,
+    correspondence_pairs,
+    rotation,
+    serial_correspondence,
+)
+from mirrorlab.plugins.retarget.correspondence import serial_parents
+from mirrorlab.plugins.retarget.solvers import paper_sweeps
+
+AXES = st.sampled_from(["z", "y", "x", "zy", "yz", "zyx", "xz"])
+lengths = st.lists(st.floats(0.2, 3.0), min_size=1, max_size=6)
+
+
+@st.composite
+def problems(draw: st.DrawFn) -> tuple[Chain, Chain, np.ndarray]:
+    n_in = draw(st.integers(2, 6))
+    n_out = draw(st.integers(1, 4))
+    inp = Chain(draw(st.lists(st.floats(0.3, 2.0), min_size=n_in, max_size=n_in)),
+                draw(st.lists(AXES, min_size=n_in, max_size=n_in)))
+    out = Chain(draw(st.lists(st.floats(0.3, 2.0), min_size=n_out, max_size=n_out)),
+                draw(st.lists(AXES, min_size=n_out, max_size=n_out)))
+    seed = draw(st.integers(0, 2**31))
+    q_in = np.random.default_rng(seed).uniform(-1.2, 1.2, (1, inp.dof))
+    return inp, out, q_in
+
+
+def objective(inp: Chain, out: Chain) -> Objective:
+    n = inp.n_links + 1
+    return Objective(out, correspondence_pairs(serial_parents(n), inp.lengths, out), serial_parents(n))
+
+
+def random_rotation(seed: int) -> np.ndarray:
+    a = np.random.default_rng(seed).uniform(-np.pi, np.pi, 3)
+    return rotation("z", a[0]) @ rotation("y", a[1]) @ rotation("x", a[2])
+
+
+@settings(max_examples=40, deadline=None)
+@given(problems(), st.integers(0, 1000))
+def test_f_nonnegative_and_rigid_motion_invariant(problem: tuple[Chain, Chain, np.ndarray], seed: int) -> None:
+    inp, out, q_in = problem
+    X = inp.forward(q_in)
+    R = random_rotation(seed)
+    t = np.random.default_rng(seed + 1).uniform(-5, 5, 3)
+    res = approximate(X, out, base=(np.eye(3), X[:, 0]), block=0)
+    moved = approximate(X @ R.T + t, out, base=(R, t), block=0)
+    assert res.f[0] >= 0
+    assert moved.f[0] == pytest.approx(res.f[0], rel=1e-6, abs=1e-9)
+
+
+@settings(max_examples=30, deadline=None)
+@given(problems(), st.floats(0.1, 100.0))
+def test_scaling_lengths_scales_f_by_s_squared(problem: tuple[Chain, Chain, np.ndarray], s: float) -> None:
+    inp, out, q_in = problem
+    X = inp.forward(q_in)
+    res = approximate(X, out, block=0, max_iter=100)
+    scaled = approximate(s * X, Chain(s * out.lengths, out.axes), block=0, max_iter=100)
+    assert scaled.f[0] == pytest.approx(s**2 * res.f[0], rel=1e-6, abs=1e-9 * s**2)
+
+
+@settings(max_examples=60, deadline=None)
+@given(lengths, lengths)
+def test_correspondence_is_monotone_and_covers_ends(a: list[float], b: list[float]) -> None:
+    c = serial_correspondence(a, b)
+    assert c.size == len(b) + 1
+    assert np.all(np.diff(c) >= 0)
+    assert c[0] == 0 and c[-1] == len(a) - 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(problems(), st.integers(0, 1000))
+def test_analytic_jacobian_matches_central_differences(problem: tuple[Chain, Chain, np.ndarray], seed: int) -> None:
+    inp, out, q_in = problem
+    obj = objective(inp, out)
+    arms = obj.arms(inp.forward(q_in))
+    q = np.random.default_rng(seed).uniform(-1.5, 1.5, (1, out.dof))
+    R, p = np.eye(3), np.zeros(3)
+    r, J, _ = obj.residuals_jacobian(q, arms, R, p)
+    grad = 2 * np.einsum("bpi,bpir->br", r, J)
+    eps = 1e-6
+    for k in range(out.dof):
+        dq = np.zeros_like(q)
+        dq[0, k] = eps
+        num = (obj.value(q + dq, arms, R, p) - obj.value(q - dq, arms, R, p)) / (2 * eps)
+        assert num[0] == pytest.approx(grad[0, k], abs=1e-6 * (1 + abs(grad[0, k])))
+    pos, jac = out.jacobian(q)
+    for k in range(out.dof):
+        dq = np.zeros_like(q)
+        dq[0, k] = eps
+        num = (out.forward(q + dq) - out.forward(q - dq)) / (2 * eps)
+        assert np.abs(num - jac[..., k]).max() < 1e-6
+
+
+@settings(max_examples=30, deadline=None)
+@given(problems(), st.integers(0, 1000))
+def test_f_never_increases_along_the_per_joint_iteration(problem: tuple[Chain, Chain, np.ndarray], seed: int) -> None:
+    inp, out, q_in = problem
+    obj = objective(inp, out)
+    arms = obj.arms(inp.forward(q_in))
+    q = np.random.default_rng(seed).uniform(-2, 2, (1, out.dof))
+    f = obj.value(q, arms, np.eye(3), np.zeros(3))
+    for _ in range(15):
+        sol = paper_sweeps(obj, q, arms, np.eye(3), np.zeros(3), sweeps=1)
+        assert sol.f[0] <= f[0] + 1e-15 * (1 + f[0])
+        q, f = sol.q, sol.f
+
+
+def test_joint_limits_are_respected_by_both_methods() -> None:
+    inp = Chain([1] * 4, ["z", "y", "z", "y"])
+    X = inp.forward(0.8 * np.sin(0.1 * np.arange(60)[:, None] + np.arange(4)))
+    out = Chain([2, 2], ["z", "y"], limits=[[-0.2, 0.2], [-0.1, 0.3]])
+    for method in ("lm", "paper"):
+        res = approximate(X, out, method, block=0)
+        assert np.all(res.q >= out.limits[:, 0] - 1e-12) and np.all(res.q <= out.limits[:, 1] + 1e-12)
+    free = approximate(X, Chain([2, 2], ["z", "y"]), block=0)
+    assert np.all(res.f >= free.f - 1e-9)
+
+
+def test_planar_two_dimensional_input() -> None:
+    inp = Chain([1.0, 1.0, 1.0], ["z", "z", "z"])
+    X = inp.forward([[0.3, 0.4, -0.2]])[..., :2]                     # (T, n + 1, 2)
+    out = Chain([1.5, 1.5], ["z", "z"])
+    res = approximate(X, out)
+    assert out.is_planar and np.abs(res.joints[..., 2]).max() == 0.0
+    assert res.f[0] < 0.05
+
+
+def test_missing_frames_give_nan_and_restart() -> None:
+    inp = Chain([1] * 4, ["z", "y", "z", "y"])
+    X = inp.forward(0.5 * np.sin(0.05 * np.arange(30)[:, None] + np.arange(4)))
+    X[10, 2] = np.nan
+    res = approximate(X, Chain([2, 2], ["z", "y"]), block=0)
+    assert np.isnan(res.f[10]) and np.isnan(res.q[10]).all() and np.isfinite(res.f[11])
+    assert res.restarted[0] and res.restarted[11] and not res.restarted[12]
+
+
+def test_bad_inputs_raise_clear_errors() -> None:
+    with pytest.raises(ChainDefinitionError, match="link 1 has length"):
+        Chain([1.0, 0.0], ["z", "y"])
+    with pytest.raises(ChainDefinitionError, match="1-3 letters"):
+        Chain([1.0], ["w"])
+    with pytest.raises(ChainDefinitionError, match="one string per joint"):
+        Chain([1.0, 1.0], "zy")
+    with pytest.raises(InputChainError, match="shape"):
+        approximate(np.zeros((4, 3)), Chain([1.0], ["z"]))
+    with pytest.raises(InputChainError, match="arm 1 .* zero median length"):
+        approximate(np.array([[[0, 0, 0], [1, 0, 0], [1, 0, 0]]] * 3, float), Chain([1.0], ["z"]))
+
+
+def test_length_drift_warns_with_arm_and_frame() -> None:
+    inp = Chain([1] * 3, ["z", "y", "z"])
+    X = inp.forward(np.zeros((20, 3)))
+    X[7, 3] += [0.5, 0, 0]                                          # stretch the last arm in frame 7
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        approximate(X, Chain([1.5, 1.5], ["z", "y"]))
+    msg = [str(w.message) for w in caught if issubclass(w.category, LengthDriftWarning)]
+    assert msg and "arm 2" in msg[0] and "frame 7" in msg[0]

@@ -1,0 +1,100 @@
+"""The streaming filter (spec §7), its sinks, and the BVH / C3D / session sources."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from mirrorlab.core import Session
+from mirrorlab.plugins.retarget import Chain, LengthDriftWarning, SourceError, approximate
+from mirrorlab.plugins.retarget.sources import read_bvh_chain, read_marker_chain, session_marker_chain
+from mirrorlab.plugins.retarget.stream import CSVSink, MemorySink, RetargetFilter, SessionSink, compute_for, poses
+
+from tests.support import SHARED_DATA
+
+from .test_fixtures import T2_OUT, t3_input
+
+BVH = SHARED_DATA / "bvh" / "01_01.bvh"
+C3D = SHARED_DATA / "mocap" / "markers_analogs.c3d"
+ARM = ["RightArm", "RightForeArm", "RightHand", "RFingers"]
+CMU_MM = 25.4 / 0.45      # mm per CMU ASF length unit
+
+
+def test_deterministic_paper_mode_is_the_batch_paper_mode_and_keeps_the_lag_bounds() -> None:
+    X = t3_input()
+    t = np.arange(100) / 30.0
+    sink = MemorySink()
+    stats = RetargetFilter(compute_for(X, T2_OUT, "paper", sweeps=3), 30.0, [sink]).run(poses(X, t))
+    out = sink.arrays()
+    assert stats.frames_in == stats.computed == stats.published == 100 and stats.dropped == 0
+    assert out["index"].tolist() == list(range(100)) and np.allclose(out["time"], t)
+    batch = approximate(X, T2_OUT, "paper", sweeps=3)
+    assert np.abs(out["q"] - batch.q).max() < 1e-12
+    ref = approximate(X, T2_OUT, "lm", max_iter=100)
+    assert (out["f"] - ref.f).max() <= 0.2 and out["f"].mean() <= 1.02 * ref.f.mean()
+    lm = MemorySink()
+    RetargetFilter(compute_for(X, T2_OUT, "lm"), 30.0, [lm]).run(poses(X, t))
+    assert np.abs(lm.arrays()["f"] - ref.f).max() < 1e-9
+
+
+def test_realtime_mode_counters_are_consistent() -> None:
+    X = t3_input(200)
+    sink = MemorySink()
+    stats = RetargetFilter(compute_for(X, T2_OUT), 400.0, [sink]).run(poses(X, np.arange(200) / 400.0), realtime=True)
+    idx = sink.arrays()["index"]
+    assert stats.frames_in == 200
+    assert stats.computed + stats.dropped == stats.frames_in        # every input is solved or overwritten
+    assert 0 < stats.published <= stats.computed
+    assert np.all(np.diff(idx) > 0) and idx[-1] == 199              # in order; the last pose is always served
+    assert len(stats.latencies) == stats.published and min(stats.latencies) >= 0
+
+
+def test_csv_and_session_sinks(tmp_path) -> None:
+    X = t3_input(20)
+    t = np.arange(20) / 10.0
+    path = tmp_path / "out.csv"
+    with Session.create(tmp_path / "s.h5", description="retarget sink") as s:
+        sinks = [CSVSink(path, T2_OUT.dof), SessionSink(s, "results/retarget_stream/run-0001", {"method": "lm"})]
+        RetargetFilter(compute_for(X, T2_OUT), 10.0, sinks).run(poses(X, t))
+    rows = list(csv.reader(path.open()))
+    assert rows[0][:3] == ["frame", "time_s", "q0_rad"] and len(rows) == 21
+    with Session.open(tmp_path / "s.h5") as s:
+        g = s.file["results/retarget_stream/run-0001"]
+        assert g["q"].shape == (20, 4) and g.attrs["method"] == "lm"
+        assert np.allclose(g["q"][:, 0], [float(r[2]) for r in rows[1:]], atol=1e-9)
+
+
+def test_bvh_reader_reproduces_the_elbow_angle_range_and_constant_lengths() -> None:
+    m = read_bvh_chain(BVH, ARM, scale=CMU_MM, skip=1)
+    assert m.joints.shape == (2751, 4, 3) and m.rate == pytest.approx(120.0)
+    u = m.joints[:, 0] - m.joints[:, 1]
+    v = m.joints[:, 2] - m.joints[:, 1]
+    elbow = 180 - np.degrees(np.arccos((u * v).sum(-1) / np.linalg.norm(u, axis=-1) / np.linalg.norm(v, axis=-1)))
+    assert elbow.min() == pytest.approx(6.6, abs=0.05) and elbow.max() == pytest.approx(128.1, abs=0.05)
+    seg = np.linalg.norm(np.diff(m.joints, axis=1), axis=-1)
+    assert np.ptp(seg, axis=0).max() < 1e-9
+    assert seg[0, :2] == pytest.approx([5.2419 * CMU_MM, 3.44417 * CMU_MM], rel=1e-6)   # upper arm, forearm
+    with pytest.raises(SourceError, match="no joint 'RightWing'.*RightForeArm"):
+        read_bvh_chain(BVH, ["RightArm", "RightWing"])
+
+
+def test_c3d_and_session_marker_chains(tmp_path) -> None:
+    joints = ["ACRO_tip", "EPICl+EPICm", "STYLr+STYLu"]
+    m = read_marker_chain(C3D, joints)
+    assert m.joints.shape == (580, 3, 3) and m.rate == 100.0
+    from mirrorlab.plugins.kinematics.store import import_markers
+
+    with Session.create(tmp_path / "m.h5") as s:
+        import_markers(s, C3D, "trial")
+    ms = session_marker_chain(tmp_path / "m.h5", "trial", joints)
+    assert np.array_equal(np.isnan(ms.joints), np.isnan(m.joints))
+    assert np.nanmax(np.abs(ms.joints - m.joints)) == 0.0
+    # a spherical shoulder + hinge elbow copies three points when the lengths match: f is the skin-marker drift
+    lengths = np.nanmedian(np.linalg.norm(np.diff(m.joints, axis=1), axis=-1), axis=0)
+    with pytest.warns(LengthDriftWarning, match="input arm 0 .* 5 %"):     # skin markers: the arm stretches 7 %
+        res = approximate(m.joints, Chain(lengths, ["zyx", "y"]))
+    ok = np.isfinite(res.f)
+    assert ok.sum() > 300 and np.sqrt(np.median(res.f[ok])) < 10.0       # mm
+    with pytest.raises(SourceError, match="joint 'ELBOW'"):
+        read_marker_chain(C3D, ["ACRO_tip", "ELBOW"])
