@@ -10,10 +10,10 @@ from ..errors import SessionExistsError
 
 
 def add_overwrite_option(parser: argparse.ArgumentParser, option: str = "--out") -> None:
-    """Add ``--overwrite``: replace the file named by ``option`` if it exists."""
+    """Add ``--overwrite``: a new session replaces the file named by ``option`` if it exists."""
     parser.add_argument("--overwrite", action="store_true",
-                        help=f"replace the file {option} names if it exists (the old file is kept until "
-                             "the new session holds data)")
+                        help=f"replace an existing {option} file with a new session (the old file stays "
+                             "until the new session holds data)")
 
 
 @contextlib.contextmanager

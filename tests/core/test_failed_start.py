@@ -118,3 +118,22 @@ def test_api_wording_and_a_failed_start_in_python(tmp_path: Path) -> None:
     with Session.open(path) as s:
         assert s.attrs["description"] == "new" and s.status == "aborted" and "calibration/cam" in s.file
     assert only_file(tmp_path) == ["s.h5"]
+
+
+def test_calibrate_into_a_new_session_with_overwrite(tmp_path: Path) -> None:
+    from tests.photogrammetry_plugin.scenes import F1, grid_points
+
+    film, grid = grid_points()
+    points = tmp_path / "grid.csv"
+    points.write_text("x,y,plane_x,plane_y\n" + "\n".join(",".join(f"{v:.17g}" for v in (*a, *b))
+                                                          for a, b in zip(film, grid)) + "\n")
+    session = tmp_path / "cal.h5"
+    args = ("calibrate", "--points", str(points), "--camera-center", ",".join(f"{v:.17g}" for v in F1),
+            "--session", str(session), "--no-progress")
+    assert run_cli(*args).returncode == 0
+    first = session_id(session)
+    again = run_cli(*args)  # an existing session is added to: the camera is already there
+    assert again.returncode == 1 and "/calibration/cam already exists" in again.stderr
+    replaced = run_cli(*args, "--overwrite")
+    assert replaced.returncode == 0, replaced.stderr
+    assert session_id(session) != first and only_file(tmp_path) == ["cal.h5", "grid.csv"]
