@@ -7,6 +7,8 @@ fewer rows than its header declares (the shared TRC is such an excerpt) reads wi
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -76,3 +78,13 @@ def test_a_c3d_that_crashes_ezc3d_is_an_error_not_a_crash(tmp_path: Path, data_d
     bad.write_bytes(bytes(data))
     with pytest.raises(KinematicsIOError, match=r"flipped.c3d: the C3D reader \(ezc3d\) crashed on this file"):
         read_c3d(bad)
+
+
+def test_reading_from_an_unguarded_script_runs_the_script_once(tmp_path: Path, data_dir: Path) -> None:
+    # the isolated reader must not re-import the caller's main module (as multiprocessing would)
+    script = tmp_path / "read.py"
+    script.write_text("from mirrorlab.plugins.kinematics import read_c3d\n"
+                      f"print(read_c3d({str(data_dir / 'mocap' / 'markers_analogs.c3d')!r}).points.shape)\n")
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "(580, 51, 3)\n"
