@@ -167,6 +167,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         problems += more
         if "plugin" not in values:
             continue
+        invalid = set(top) - set(values)
         values = {**INSTRUMENT_KEYS.defaults(), **values}  # invalid keys are reported; check the rest on defaults
         try:
             cls = registry.instrument(values["plugin"])
@@ -182,7 +183,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         if values.get("simulate") and getattr(cls, "simulator", None) is None and \
                 getattr(cls, "make_simulator", None) is None:
             problems.append(Problem(f"{where}.simulate", f"{cls.name} has no simulator", file))
-        if not values.get("simulate") and not values.get("port") and cls.needs_port({**cls.parameters.defaults(), **settings}):
+        # (a `simulate` of the wrong type is its own problem, not a missing port)
+        if ("simulate" not in invalid and not values["simulate"] and not values.get("port")
+                and cls.needs_port({**cls.parameters.defaults(), **settings})):
             problems.append(Problem(f"{where}.port", "required unless simulate = true "
                                     "(device path or pyserial URL)", file))
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
