@@ -7,9 +7,16 @@ their own errors from :class:`MirrorlabError` (for example ``mirrorlab.plugins.p
 
 from __future__ import annotations
 
+from pathlib import Path
+
 
 class MirrorlabError(Exception):
     """Base class of every error mirrorlab raises on purpose."""
+
+
+class MirrorlabWarning(UserWarning):
+    """Something the user must know that does not stop the work (a file holding less than it
+    declares, say). The CLI prints it as one ``mirrorlab: warning:`` line."""
 
 
 class ValidationError(MirrorlabError):
@@ -55,6 +62,26 @@ class SessionError(MirrorlabError):
 
 class DamagedFileError(SessionError):
     """A session file is truncated, bit-damaged or not HDF5 at all: HDF5 cannot read it."""
+
+
+class SessionExistsError(SessionError):
+    """A new session would replace an existing file.
+
+    ``advice`` says what to do; the API's default names ``overwrite=True``, the CLI rewords it for
+    its ``--overwrite`` option.
+    """
+
+    def __init__(self, path: Path, advice: str = "pass overwrite=True to replace it, or choose another path") -> None:
+        self.path = path
+        super().__init__(f"{path} already exists; {advice}")
+
+
+class DataError(MirrorlabError):
+    """Input data is damaged (a cut file, a frame that cannot be decoded): retrying cannot help.
+
+    An instrument whose source raises it during acquisition stops and reports it once, instead of
+    reconnecting as it does for a lost connection.
+    """
 
 
 class AlgorithmError(MirrorlabError):

@@ -167,7 +167,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         problems += more
         if "plugin" not in values:
             continue
-        simulate_known = "simulate" not in top or "simulate" in values  # an invalid one is already reported
+        invalid = set(top) - set(values)
         values = {**INSTRUMENT_KEYS.defaults(), **values}  # invalid keys are reported; check the rest on defaults
         try:
             cls = registry.instrument(values["plugin"])
@@ -183,8 +183,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         if values.get("simulate") and getattr(cls, "simulator", None) is None and \
                 getattr(cls, "make_simulator", None) is None:
             problems.append(Problem(f"{where}.simulate", f"{cls.name} has no simulator", file))
-        if simulate_known and not values.get("simulate") and not values.get("port") and \
-                cls.needs_port({**cls.parameters.defaults(), **settings}):
+        # (a `simulate` of the wrong type is its own problem, not a missing port)
+        if ("simulate" not in invalid and not values["simulate"] and not values.get("port")
+                and cls.needs_port({**cls.parameters.defaults(), **settings})):
             problems.append(Problem(f"{where}.port", "required unless simulate = true "
                                     "(device path or pyserial URL)", file))
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
@@ -227,16 +228,18 @@ def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str
 
 
 def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
-               on_session: Callable[[Session], None] | None = None) -> Path:
+               on_session: Callable[[Session], None] | None = None, overwrite: bool = False) -> Path:
     """Run a validated recipe into a new session file; return its path.
 
     On failure the session is closed with status ``aborted`` (everything recorded is kept) and
-    the error propagates.
+    the error propagates; a failure before anything was recorded or stored (an instrument that
+    would not connect) leaves no file (see :meth:`Session.create`). ``overwrite`` replaces an
+    existing ``out``.
     """
     record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
               "effective": json.loads(json.dumps(recipe.data, default=str))}
     with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
-                        registry=registry) as session:
+                        registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
         for plan in recipe.instruments:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform
 import socket
 import sys
@@ -41,7 +42,7 @@ import numpy as np
 from .algorithms import Algorithm, ResultRef, RunContext, execute
 from .clock import SessionClock, utc_now_iso
 from .devices import Instrument, SerialInstrument, SimulatorServer
-from .errors import Problem, SessionError, ValidationError
+from .errors import Problem, SessionError, SessionExistsError, ValidationError
 from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
 from .registry import Registry, get_registry
@@ -103,6 +104,10 @@ class Session:
         self._recording: list[str] = []
         self._closed = False
         self._created = False
+        self._draft: Path | None = None  # the file as created, until _commit (see create)
+        #: How long the last recording lasted (start to stop of the instruments), s.
+        self.recorded_seconds = 0.0
+        self._record_start = 0.0
         for message in registry.notify("mirrorlab_session_opened", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
 
@@ -123,29 +128,49 @@ class Session:
             ``{"text": ..., "overrides": [...], "effective": {...}, "path": ...}`` of the recipe
             as run (see :mod:`mirrorlab.core.recipes`); stored under ``/config``.
         overwrite
-            Replace an existing file instead of refusing.
+            Replace an existing file instead of refusing (:class:`SessionExistsError`).
+
+        The new file is a *draft* until it holds something: until recording starts, a group or a
+        result is written, or the session is closed cleanly. A draft closed as ``aborted`` (an
+        exception escaped the ``with`` block, e.g. an instrument that would not connect) is deleted,
+        so a failed start leaves no file behind; with ``overwrite`` the draft is written beside the
+        old file and replaces it only then, so a failed start keeps the old file as it was.
         """
         path = Path(path)
         if path.exists() and not overwrite:
-            raise SessionError(f"{path} already exists; choose another --out or pass overwrite=True")
+            raise SessionExistsError(path)
+        if path.is_dir():
+            raise SessionError(f"{path} is a folder; give a file name such as {path / 'session.h5'}")
         registry = registry or get_registry()
-        f = files.open_writable(path, "w")
-        f.attrs.update({
-            "mirrorlab_schema": schema.SCHEMA_VERSION,
-            "mirrorlab_version": mirrorlab_version(),
-            "session_id": str(uuid.uuid4()),
-            "created_utc": utc_now_iso(),
-            "operator": operator,
-            "description": description,
-            "status": "open",
-        })
-        for name in schema.GROUPS:
-            f.create_group(name)
-        schema.create_log(f)
-        cls._write_config(f, recipe or {}, registry)
-        f.flush()
+        # The new file is a draft until it holds something (see _commit): written beside an existing
+        # file, so that a start that fails neither leaves a file behind nor destroys the old one.
+        draft = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.draft") if path.exists() else path
+        try:
+            f = files.open_writable(draft, "w-")
+        except FileExistsError:
+            raise SessionExistsError(path) from None
+        try:
+            f.attrs.update({
+                "mirrorlab_schema": schema.SCHEMA_VERSION,
+                "mirrorlab_version": mirrorlab_version(),
+                "session_id": str(uuid.uuid4()),
+                "created_utc": utc_now_iso(),
+                "operator": operator,
+                "description": description,
+                "status": "open",
+            })
+            for name in schema.GROUPS:
+                f.create_group(name)
+            schema.create_log(f)
+            cls._write_config(f, recipe or {}, registry)
+            f.flush()
+        except BaseException:
+            f.close()
+            draft.unlink(missing_ok=True)
+            raise
         session = cls(path, f, True, registry)
         session._created = True
+        session._draft = draft
         return session
 
     @classmethod
@@ -225,6 +250,12 @@ class Session:
             raise SessionError(f"{self.path} is open read-only; open it with writable=True to {what}")
         if self._recorder is not None and what != "record":
             raise SessionError(f"cannot {what} while recording (the file's layout is fixed); stop first")
+
+    def _commit(self) -> None:
+        """The new file now holds something worth keeping: put it at its path (see :meth:`create`)."""
+        if self._draft is not None and self._draft != self.path:
+            os.replace(self._draft, self.path)  # the open HDF5 file follows its inode
+        self._draft = None
 
     # -- instruments -----------------------------------------------------------------------------
     def add_instrument(self, label: str, plugin: str, *, port: str | None = None,
@@ -359,12 +390,14 @@ class Session:
             emitters[label] = Emitter(label, self.router, self.clock, {s.name: s for s in specs})
         self._write_pending_log()
         self.file.flush()
+        self._commit()
         self.file.swmr_mode = True  # from here on no object or attribute may be created
         files.write_lock(self.path)  # tells `session check/close` a live writer has the file
         self.router.recording = True
         self._recorder = Recorder(self.file, self.router, self.events)
         self._recorder.start()
         self._recording = labels
+        self._record_start = time.monotonic()
         self.events.emit("info", "session", "recording_started", "recording started", instruments=labels)
         for label in labels:
             self.instruments[label].start(emitters[label])
@@ -378,6 +411,7 @@ class Session:
         for label in self._recording:
             self.instruments[label].stop()
         self.router.recording = False
+        self.recorded_seconds = time.monotonic() - self._record_start
         recorder, self._recorder = self._recorder, None
         try:
             recorder.stop()
@@ -398,8 +432,9 @@ class Session:
                     g[name].attrs["dropped"] = stats.get(f"{label}/{name}", {}).get("dropped", 0)
         dropped = sum(s["dropped"] for s in stats.values())
         self.events.emit("warning" if dropped else "info", "session", "recording_stopped",
-                         f"recording stopped: {sum(s['samples'] for s in stats.values())} samples written, "
-                         f"{dropped} dropped", statistics=stats)
+                         f"recording stopped after {self.recorded_seconds:.1f} s: "
+                         f"{sum(s['samples'] for s in stats.values())} samples written, {dropped} dropped",
+                         statistics=stats, seconds=self.recorded_seconds)
         self._write_pending_log()
         self.file.flush()
         for message in self.registry.notify("mirrorlab_recording_stopped", session=self, statistics=stats):
@@ -413,19 +448,26 @@ class Session:
         Parameters
         ----------
         seconds
-            Duration in s; ``None`` records until every recorded instrument has finished (a finite
-            source such as a folder of frames or a virtual scene) or failed.
+            Duration in s; ``None`` or 0 records until every recorded instrument has finished (a
+            finite source such as a folder of frames or a virtual scene) or failed, as ``seconds = 0``
+            does in a recipe's ``acquire`` step. A source that ends before ``seconds`` is reported
+            with a ``source_ended`` warning event. :attr:`recorded_seconds` says how long it lasted.
         instruments
             Labels to record (default: all).
         """
+        if seconds is not None and not seconds >= 0:
+            raise ValidationError([Problem("seconds", f"{seconds} s: must be >= 0 (0 = until the sources end)")])
+        seconds = seconds or None
         self.start_recording(instruments)
         recorded = [self.instruments[label] for label in self._recording]
+        ended: set[str] = set()
         try:
             start = time.monotonic()
             while seconds is None or (time.monotonic() - start) < seconds:
                 elapsed = time.monotonic() - start
                 self.events.progress("acquire", round(elapsed, 1), seconds, "recording")
                 time.sleep(0.1 if seconds is None else min(0.1, max(0.0, seconds - elapsed)))
+                self._report_ended(recorded, ended, time.monotonic() - start, seconds)
                 if self._recorder is not None and self._recorder.error is not None:
                     break
                 if all(i.failed is not None for i in recorded):
@@ -439,6 +481,19 @@ class Session:
             stats = self.stop_recording()
         return stats
 
+    def _report_ended(self, recorded: list[Instrument], ended: set[str], elapsed: float,
+                      seconds: float | None) -> None:
+        """Warn once per instrument whose source ended (not failed) before the requested duration."""
+        for inst in recorded:
+            if inst.label in ended or inst.running:
+                continue
+            ended.add(inst.label)
+            if seconds is not None and inst.failed is None:
+                self.events.emit("warning", inst.label, "source_ended",
+                                 f"source ended after about {elapsed:.1f} s, before the requested {seconds:g} s; "
+                                 "the recording holds what it delivered",
+                                 elapsed=elapsed, requested=seconds)
+
     # -- writing other data ----------------------------------------------------------------------
     def _write_pending_log(self) -> None:
         events = self.events.take_pending()
@@ -450,6 +505,7 @@ class Session:
         self._require_writable(f"write {path}")
         if path.strip("/") in self.file:
             raise SessionError(f"{path} already exists in {self.path}; groups are never overwritten")
+        self._commit()
         g = self.file.create_group(path.strip("/"))
         for name, value in arrays.items():
             g.create_dataset(name, data=np.asarray(value))
@@ -497,6 +553,7 @@ class Session:
             if progress is not None:
                 progress(done, total, message)
 
+        self._commit()
         started = utc_now_iso()
         outcome = execute(cls, arrays, parameters or {}, RunContext(report))
         finished = utc_now_iso()
@@ -624,7 +681,8 @@ class Session:
         """Stop recording if needed, close instruments and simulators, set ``status``, close the file.
 
         ``status`` defaults to ``closed`` for a session created here and to its stored status for
-        an opened one (analysis never turns an aborted recording into a closed one).
+        an opened one (analysis never turns an aborted recording into a closed one). A new session
+        closed ``aborted`` before it held anything is deleted (see :meth:`create`).
         """
         if self._closed:
             return
@@ -651,8 +709,12 @@ class Session:
                 self.events.emit("info", "session", "closed", f"session {status}")
                 self._write_pending_log()
                 self.file.attrs["status"] = status
+                if status == "closed":
+                    self._commit()
         finally:
             self._closed = True
             self.file.close()
+            if self._draft is not None:  # a start that failed before the file held anything
+                self._draft.unlink(missing_ok=True)
         if errors:
             raise errors[0]

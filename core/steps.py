@@ -76,7 +76,7 @@ class Acquire(Step):
         return values, problems
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        session.record(values["seconds"] or None, _labels(values["instruments"]) or None)
+        session.record(values["seconds"], _labels(values["instruments"]) or None)
 
 
 class Wait(Step):

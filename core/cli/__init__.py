@@ -14,9 +14,11 @@ import argparse
 import logging
 import os
 import sys
+import warnings
 from collections.abc import Sequence
+from typing import Any
 
-from ..errors import MirrorlabError, ValidationError
+from ..errors import MirrorlabError, MirrorlabWarning, ValidationError
 from ..version import mirrorlab_version
 from . import commands
 
@@ -84,11 +86,24 @@ def _split_debug(argv: list[str]) -> tuple[list[str], bool]:
     return kept, len(kept) != len(argv)
 
 
+_python_show_warning = warnings.showwarning
+
+
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: Any = None, line: str | None = None) -> None:
+    """mirrorlab's own warnings are one line on stderr, like its errors; others keep Python's format."""
+    if issubclass(category, MirrorlabWarning):
+        print(f"mirrorlab: warning: {message}", file=sys.stderr)
+    else:
+        _python_show_warning(message, category, filename, lineno, file, line)
+
+
 def _configure_logging(debug: bool) -> None:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     logging.getLogger("mirrorlab").setLevel(logging.DEBUG if debug else logging.ERROR)
     if not debug:  # session events reach the terminal through the command (progress bar, raised errors)
         logging.getLogger("mirrorlab.events").setLevel(logging.CRITICAL)
+        warnings.showwarning = _show_warning
 
 
 def main(argv: Sequence[str] | None = None) -> int:

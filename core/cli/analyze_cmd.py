@@ -12,9 +12,22 @@ from ..algorithms import Algorithm
 from ..errors import AlgorithmError, Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
+from ..steps import Acquire
 from .options import add_parameter_options, collected, existing_path
+from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 from .run_cmd import print_summary
+
+#: ``mirrorlab record --seconds`` when not given, s.
+RECORD_SECONDS = 5.0
+
+
+def duration(text: str) -> float:
+    """``--seconds``: checked like the recipe step ``acquire``'s ``seconds`` (units, >= 0; 0 = until the end)."""
+    value, reason = Acquire.parameters["seconds"].check(text)
+    if reason:
+        raise argparse.ArgumentTypeError(reason)
+    return float(value)
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -44,7 +57,10 @@ def add(sub: argparse._SubParsersAction) -> None:
             continue
         p = rsub.add_parser(name, help=cls.description, description=cls.description)
         p.add_argument("--out", type=Path, required=True, help="session file to create")
-        p.add_argument("--seconds", type=float, default=5.0, help="recording duration [s]")
+        add_overwrite_option(p)
+        p.add_argument("--seconds", type=duration, default=RECORD_SECONDS, metavar="S",
+                       help=f"how long to record [s] (default {RECORD_SECONDS:g}; 0 = until every source has "
+                            "ended, as in a recipe's acquire step; Ctrl-C stops an endless source)")
         p.add_argument("--port", help="device path or pyserial URL")
         p.add_argument("--simulate", action="store_true", help="use the plugin's simulator")
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
@@ -95,11 +111,16 @@ def analyze(args: argparse.Namespace) -> int:
 
 
 def record(args: argparse.Namespace) -> int:
-    with progress_bar(not args.no_progress) as on_event:
-        with Session.create(args.out, description=f"mirrorlab record {args.instrument_name}") as s:
+    with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+        with Session.create(args.out, description=f"mirrorlab record {args.instrument_name}",
+                            overwrite=args.overwrite) as s:
             s.events.subscribe(on_event)
             s.add_instrument("dev", args.instrument_name, port=args.port, settings=collected(args),
                              simulate=args.simulate, simulator={"clock": "FAST" if args.fast else "REAL"})
             s.record(args.seconds)
+            failed = [label for label, inst in s.instruments.items() if inst.failed is not None]
+    asked = (f"of the requested {args.seconds:g} s (--seconds)" if args.seconds
+             else "until the source ended (--seconds 0)")
+    print(f"recorded {s.recorded_seconds:.1f} s {asked}")
     print_summary(args.out)
-    return 0
+    return 1 if failed else 0

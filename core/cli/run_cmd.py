@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..recipes import load_recipe, run_recipe
 from ..session import Session
+from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 
 #: The recipe ``mirrorlab demo`` runs: package data of ``mirrorlab.sessions`` (``sessions/`` in a checkout).
@@ -22,6 +23,7 @@ def _plural(n: int, word: str) -> str:
 
 def _common(p: argparse.ArgumentParser, out_help: str) -> None:
     p.add_argument("--out", type=Path, metavar="FILE.h5", help=out_help)
+    add_overwrite_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a recipe value, e.g. steps.0.seconds=2 (repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -47,8 +49,8 @@ def run(args: argparse.Namespace) -> int:
               f"{_plural(len(recipe.steps), 'step')})")
         return 0
     out = args.out or recipe.default_output(getattr(args, "default_root", None))
-    with progress_bar(not args.no_progress) as on_event:
-        run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event))
+    with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+        run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event), overwrite=args.overwrite)
     print_summary(out)
     return 0
 

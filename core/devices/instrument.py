@@ -17,7 +17,8 @@ and ``status`` may be called any time after ``connect``. Every call is bounded b
 While started, :meth:`acquire` runs in the instrument's own thread; when it raises
 :class:`DeviceDisconnected`, :class:`DeviceTimeout` or :class:`ProtocolError` the base class
 reports it, reconnects with exponential backoff (if the device allows) and resumes — other
-instruments of the session keep recording meanwhile.
+instruments of the session keep recording meanwhile. Any other :class:`MirrorlabError` (damaged
+data: :class:`DataError`; a device's ``ERR`` reply) stops that instrument, reported once.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError
+from ..errors import DeviceDisconnected, DeviceError, DeviceTimeout, MirrorlabError, ProtocolError
 from ..params import ParameterSet
 from ..streams import StreamSpec
 from .protocol import LineClient, Reply
@@ -237,6 +238,10 @@ class Instrument(ABC):
                     self.failed = exc
                     self.report("error", "failed", f"{self.device_name} stopped recording: {exc}")
                     return
+            except MirrorlabError as exc:  # damaged data, a device error: retrying cannot help
+                self.failed = exc
+                self.report("error", "failed", f"{self.device_name} stopped recording: {exc}")
+                return
             except Exception as exc:  # a driver bug: report it, keep the session alive
                 self.failed = exc
                 self.report("error", "failed", f"{self.device_name} acquisition failed: "

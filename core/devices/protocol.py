@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import serial
 
@@ -28,6 +29,8 @@ except ImportError:  # Windows
 
 log = logging.getLogger(__name__)
 
+T = TypeVar("T")
+
 MAX_COMMAND = 200
 ABORT_BYTE = b"\x18"
 
@@ -39,11 +42,18 @@ class Reply:
     fields: list[str]
     data: list[str] = field(default_factory=list)
 
-    def field(self, i: int, name: str = "field") -> str:
+    def field(self, i: int, name: str = "field", kind: Callable[[str], T] = str) -> T:  # type: ignore[assignment]
+        """Field ``i`` converted by ``kind`` (``int``, ``float``...); :class:`ProtocolError` if absent or malformed."""
         try:
-            return self.fields[i]
+            text = self.fields[i]
         except IndexError:
             raise ProtocolError(f"reply OK {' '.join(self.fields)!r} lacks {name} (position {i})") from None
+        try:
+            return kind(text)
+        except ValueError:
+            raise ProtocolError(f"reply OK {' '.join(self.fields)[:60]!r}: {name} (position {i}) is {text[:20]!r}, "
+                                f"not {getattr(kind, '__name__', 'a value')}; check the device's firmware "
+                                "and the cable") from None
 
 
 class _Hangup:

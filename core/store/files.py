@@ -161,16 +161,26 @@ def open_readonly(path: str | Path) -> tuple[h5py.File, bool]:
 
 
 def open_writable(path: str | Path, mode: str = "a") -> h5py.File:
-    """``h5py.File(path, mode, libver=LIBVER)`` (``"w"`` creates, ``"a"`` appends) with plain errors."""
+    """``h5py.File(path, mode, libver=LIBVER)`` with plain errors.
+
+    ``"w"`` creates (or truncates), ``"w-"`` creates and raises :class:`FileExistsError` if the file
+    is there (the caller says what that means), ``"a"`` appends. Creating makes missing folders.
+    """
     path = Path(path)
-    try:
-        if mode == "w":
+    creating = mode in ("w", "w-")
+    if creating:
+        try:
             path.parent.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:  # a file stands where the path needs a folder
+            raise os_error(path, NotADirectoryError(errno.ENOTDIR, "not a directory"), "create") from None
+        except OSError as exc:
+            raise os_error(path, exc, "create") from exc
+    try:
         return h5py.File(path, mode, libver=LIBVER)
-    except FileExistsError:  # from mkdir: a file stands where the path needs a folder
-        raise os_error(path, NotADirectoryError(errno.ENOTDIR, "not a directory"), "create") from None
+    except FileExistsError:
+        raise
     except OSError as exc:
-        raise os_error(path, exc, "create" if mode == "w" else "write to") from exc
+        raise os_error(path, exc, "create" if creating else "write to") from exc
 
 
 def lock_path(path: str | Path) -> Path:

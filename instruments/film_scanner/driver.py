@@ -234,7 +234,7 @@ class FilmScanner(SerialInstrument):
         """``HOME`` (LCHOME + CHOME); returns the device's time for it, s."""
         reply = self.query("HOME", self._long_timeout((HOME_SEARCH_STEPS + CENTRE_STEPS) * STEP_S))
         self._homed = True
-        return _ms(reply.field(0, "ms")) / 1000.0
+        return reply.field(0, "ms", float) / 1000.0
 
     def clamp(self, where: str) -> None:
         """Close the solenoid clamp ``"BASE"`` or ``"CARRIER"``."""
@@ -244,7 +244,7 @@ class FilmScanner(SerialInstrument):
         """Find the next frame (``HEAD``); returns (lines advanced, seconds)."""
         worst = HEAD_LIMIT_LINES * self.line_seconds + 3 * CENTRE_STEPS * STEP_S
         reply = self.query("HEAD", self._long_timeout(worst))
-        return int(reply.field(0, "lines")), _ms(reply.field(1, "ms")) / 1000.0
+        return reply.field(0, "lines", int), reply.field(1, "ms", float) / 1000.0
 
     def scan(self, lines: int, stop: threading.Event | None = None) -> tuple[np.ndarray, float]:
         """Scan ``lines`` lines (feeding one line after each); returns (0/255 image, seconds).
@@ -260,18 +260,24 @@ class FilmScanner(SerialInstrument):
             if len(reply.data) != n:
                 raise ProtocolError(f"{self.device_name}: SCAN {n} returned {len(reply.data)} lines")
             for j, line in enumerate(reply.data):
-                index, bits = parse_data_line(line, "L")
+                index, bits = self._data_line(line, "L")
                 if index != j:
                     raise ProtocolError(f"{self.device_name}: SCAN line {index} arrived as line {j}")
                 rows.append(bits)
-            seconds += _ms(reply.field(1, "ms")) / 1000.0
+            seconds += reply.field(1, "ms", float) / 1000.0
         image = np.array(rows, dtype=np.uint8).reshape(-1, PIXELS) * np.uint8(255)
         return image, seconds
+
+    def _data_line(self, line: str, tag: str) -> tuple[int, np.ndarray]:
+        try:
+            return parse_data_line(line, tag)
+        except ProtocolError as exc:
+            raise ProtocolError(f"{self.device_name}: {exc}; check the cable and the baud rate") from None
 
     def read_line(self) -> np.ndarray:
         """``LINE?``: the binary line at the current position, uint8 0/255 ``(512,)``."""
         reply = self.query("LINE?")
-        return parse_data_line(_one(reply.data, "LINE?"), "LINE")[1] * np.uint8(255)
+        return self._data_line(_one(reply.data, "LINE?"), "LINE")[1] * np.uint8(255)
 
     def grey_profile(self) -> np.ndarray:
         """``GREY?``: grey levels of the current line by threshold sweep, uint8 ``(512,)``."""
@@ -279,29 +285,26 @@ class FilmScanner(SerialInstrument):
         parts = _one(reply.data, "GREY?").split(" ")
         if parts[0] != "GREY" or len(parts) != PIXELS + 2:
             raise ProtocolError(f"{self.device_name}: malformed GREY line ({len(parts)} fields)")
-        return np.array(parts[2:], dtype=np.int64).clip(0, 255).astype(np.uint8)
+        try:
+            return np.array(parts[2:], dtype=np.int64).clip(0, 255).astype(np.uint8)
+        except ValueError:
+            raise ProtocolError(f"{self.device_name}: GREY line holds a value that is not an integer") from None
 
     def feed(self, mm: float) -> float:
         """Move the carrier by ``mm`` (rounded to whole lines); returns the carrier position, mm."""
         lines = int(round(mm / PIXEL_MM))
         reply = self.query(f"FEED {lines}", self._long_timeout(abs(lines) * FEED_S_PER_LINE))
-        return int(reply.field(0, "pointer")) * STEP_UM / 1000.0
+        return reply.field(0, "pointer", int) * STEP_UM / 1000.0
 
     def position(self) -> tuple[float, float]:
         """``POS?``: (carrier position from the left limit switch, film advance), both mm."""
         reply = self.query("POS?")
-        return (int(reply.field(0, "pointer")) * STEP_UM / 1000.0,
-                int(reply.field(1, "film steps")) * STEP_UM / 1000.0)
-
-
-def _ms(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise ProtocolError(f"expected a time in ms, got {text!r}") from None
+        return (reply.field(0, "pointer", int) * STEP_UM / 1000.0,
+                reply.field(1, "film steps", int) * STEP_UM / 1000.0)
 
 
 def _one(data: list[str], command: str) -> str:
     if len(data) != 1:
-        raise ProtocolError(f"{command} returned {len(data)} data lines, expected 1")
+        raise ProtocolError(f"{command} returned {len(data)} data lines, expected 1; check the cable and "
+                            "that the port is the scanner's")
     return data[0]

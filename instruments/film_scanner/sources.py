@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import DeviceDisconnected
+from mirrorlab.core.errors import DataError, DeviceDisconnected
 
 from .wire import PIXELS
 
@@ -47,10 +47,30 @@ def image_files(folder: Path) -> list[Path]:
 
 
 def read_grey(path: Path) -> np.ndarray:
-    """Read one image as 8-bit greyscale; raises DeviceDisconnected if it cannot be decoded."""
-    img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    """Read one image as 8-bit greyscale.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read or decoded, or it is a JPEG cut short (OpenCV would decode the
+        part that is there and fill the rest with grey).
+    """
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise DataError(f"cannot read image {str(path)!r} ({exc.strerror}); check that it exists and is "
+                        "readable, or remove it from the folder") from None
+    # A JPEG's last scan (marker FF DA) ends with the end-of-image marker FF D9; a cut file lacks it.
+    if path.suffix.lower() in (".jpg", ".jpeg") and data.rfind(b"\xff\xd9") < data.rfind(b"\xff\xda"):
+        raise DataError(f"image {str(path)!r} is cut short (its JPEG data stop before the end marker); "
+                        "replace or remove it")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE) if data else None
+    except cv2.error:  # some damaged headers fail OpenCV's own checks instead of returning None
+        img = None
     if img is None:
-        raise DeviceDisconnected(f"cannot decode image {str(path)!r}; check that it is a valid PNG/TIFF/JPEG")
+        raise DataError(f"image {str(path)!r} cannot be decoded (damaged, or not a PNG/TIFF/JPEG/BMP); "
+                        "replace or remove it")
     return img
 
 

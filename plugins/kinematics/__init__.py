@@ -22,6 +22,7 @@ from .errors import (
     RSSRError,
     SingularFrame,
     ToggleSingularity,
+    TruncatedMarkerFile,
 )
 from .filters import (
     THESIS_KERNEL,

@@ -23,6 +23,7 @@ import numpy as np
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
 from mirrorlab.core.cli.options import add_parameter_options, collected, plain
+from mirrorlab.core.cli.outputs import add_overwrite_option
 from mirrorlab.core.cli.progress import progress_bar
 from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.errors import Problem, ValidationError
@@ -197,8 +198,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     if not path.is_file():
         raise ValidationError([Problem("FILE", f"no such marker file {str(path)!r}")])
     out = Path(args.session)
-    opener = (Session.open(out, writable=True) if out.exists()
-              else Session.create(out, description=f"markers imported from {path.name}"))
+    # A failed import into a new session leaves no file (the session is a draft until written).
+    opener = (Session.open(out, writable=True) if out.exists() and not args.overwrite
+              else Session.create(out, description=f"markers imported from {path.name}", overwrite=args.overwrite))
     with opener as s:
         group, data = import_markers(s, path, args.name, args.format)
     missing = float(np.isnan(data.points).any(-1).mean()) if data.points.size else 0.0
@@ -265,19 +267,44 @@ def cmd_derivatives(args: argparse.Namespace) -> int:
         return _finish(args, src, {"markers": per, "figures": figs}, lines)
 
 
-def _read_mot(path: Path, column: str) -> tuple[np.ndarray, np.ndarray]:
-    lines = path.read_text().splitlines()
+def read_mot(path: Path, column: str) -> tuple[np.ndarray, np.ndarray]:
+    """Time (first column) and ``column`` of an OpenSim ``.mot``/``.sto`` file.
+
+    Raises
+    ------
+    ValidationError
+        The file is unreadable, not a .mot/.sto table, lacks ``column`` or holds a row that is not
+        numbers (``--reference`` is named, with the file and the line).
+    """
+    def bad(reason: str) -> ValidationError:
+        return ValidationError([Problem("--reference", f"{path}: {reason}")])
+
     try:
-        h = next(i for i, ln in enumerate(lines) if ln.strip().lower().startswith("endheader"))
-    except StopIteration:
-        raise ValidationError([Problem("--reference",
-                                       f"{path} is not an OpenSim .mot/.sto file (no endheader)")]) from None
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise bad(f"cannot read it as text ({exc}); give an OpenSim .mot/.sto file") from None
+    h = next((i for i, ln in enumerate(lines) if ln.strip().lower().startswith("endheader")), None)
+    if h is None or h + 1 >= len(lines):
+        raise bad("not an OpenSim .mot/.sto file (no endheader followed by column names)")
     sep = "\t" if "\t" in lines[h + 1] else ","
     cols = [c.strip() for c in lines[h + 1].split(sep)]
     if column not in cols:
-        raise ValidationError([Problem("--reference", f"{path} has no column {column!r}; columns: {cols[:12]}")])
-    rows = np.array([[float(x) for x in ln.split(sep)[: len(cols)]] for ln in lines[h + 2:] if ln.strip()])
-    return rows[:, 0], rows[:, cols.index(column)]
+        raise bad(f"no column {column!r}; columns: {cols[:12]}")
+    rows = []
+    for lineno, ln in enumerate(lines[h + 2:], start=h + 3):
+        if not ln.strip():
+            continue
+        cells = ln.split(sep)
+        try:
+            if len(cells) < len(cols):
+                raise ValueError(f"{len(cells)} fields, the header has {len(cols)}")
+            rows.append([float(x) for x in cells[: len(cols)]])
+        except ValueError as exc:
+            raise bad(f"line {lineno} is not a row of numbers ({exc})") from None
+    if not rows:
+        raise bad("no data rows after the column names")
+    table = np.asarray(rows)
+    return table[:, 0], table[:, cols.index(column)]
 
 
 def cmd_angles(args: argparse.Namespace) -> int:
@@ -323,7 +350,7 @@ def cmd_angles(args: argparse.Namespace) -> int:
             if not path or angle not in angles:
                 raise ValidationError([Problem("--reference", "give COLUMN=FILE.mot and --compare ANGLE with an "
                                                               f"angle computed here ({', '.join(angles)})")])
-            t_ref, y_ref = _read_mot(Path(path), column)
+            t_ref, y_ref = read_mot(Path(path), column)
             frame = np.rint(t_ref * src.data.rate).astype(int) - src.data.first_frame
             inside = (frame >= 0) & (frame < src.time.size)
             d = np.degrees(np.asarray(angles[angle], float)[frame[inside]]) - y_ref[inside]
@@ -410,7 +437,8 @@ def add(subparsers: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("import", help="copy a C3D/TRC/TSV marker file into a session as /markers/<name>")
     p.add_argument("file", help="marker file (.c3d, .trc, .tsv)")
-    p.add_argument("--session", required=True, help="session file (created if absent)")
+    p.add_argument("--session", required=True, help="session file (created if absent, else added to)")
+    add_overwrite_option(p, "--session")
     p.add_argument("--name", help="dataset name under /markers (default: the file's stem)")
     p.add_argument("--format", default="auto", choices=("auto", "c3d", "trc", "tsv"),
                    help="marker file format (default: from the suffix)")

@@ -79,6 +79,27 @@ class KinematicsIOError(KinematicsError):
     """A marker file (C3D, TRC, TSV) is malformed or lacks the expected content."""
 
 
+class TruncatedMarkerFile(KinematicsIOError):
+    """A marker file was cut short: it holds less than its header declares or ends inside a record.
+
+    Attributes
+    ----------
+    path : Path
+        The file.
+    declared : int
+        Frames its header declares.
+    found : int
+        Complete frames present.
+    """
+
+    def __init__(self, path: object, declared: int, found: int, detail: str) -> None:
+        self.path = path
+        self.declared = declared
+        self.found = found
+        super().__init__(f"{path}: cut short: {detail}; copy the file again from its source "
+                         "(an interrupted copy or download leaves such files)")
+
+
 def first_index(mask: np.ndarray) -> tuple[int, ...]:
     """Index of the first True of ``mask`` as plain ints, for error messages (``()`` for a scalar)."""
     import numpy as np

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from mirrorlab.core.algorithms import Algorithm, RunContext, execute
 from mirrorlab.core.cli.options import add_parameter_options, collected
+from mirrorlab.core.cli.outputs import add_overwrite_option
 from mirrorlab.core.cli.progress import progress_bar
 from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.errors import Problem, ValidationError
@@ -56,6 +57,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     c.add_argument("--detector", choices=("classic", "sb"), default="classic", help="corner detector")
     c.add_argument("--camera-center", metavar="X,Y,Z", help="camera centre F1 [mm] (plane map)")
     c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
+    add_overwrite_option(c, "--session")
     c.add_argument("--camera", default="cam", help="camera name (default cam)")
     c.add_argument("--json", action="store_true", help="print the camera as JSON (input of reconstruct --camera-file)")
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -69,6 +71,7 @@ def add(sub: argparse._SubParsersAction) -> None:
                     "or a CSV file (--markers; columns frame,marker,x,y and for the mirror method xv,yv). "
                     "Writes the result into SESSION (with provenance) and/or a points CSV (--out).")
     r.add_argument("session", type=Path, nargs="?", help="session file (created if missing when the data come from CSV)")
+    add_overwrite_option(r, "SESSION")
     r.add_argument("--method", required=True, choices=("parallel", "central", "mirror"), help="reconstruction method")
     r.add_argument("--markers", type=Path, metavar="CSV", help="marker image coordinates (frame,marker,x,y[,xv,yv])")
     r.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
@@ -110,14 +113,15 @@ def _params_for(args: argparse.Namespace, algorithm: type[Algorithm], others: li
 
 
 @contextmanager
-def _session(path: Path | None, create: bool, description: str) -> Iterator[Session | None]:
+def _session(path: Path | None, create: bool, description: str, overwrite: bool) -> Iterator[Session | None]:
+    """The session to write into: ``path`` opened, or created (a new one replaces it with ``overwrite``)."""
     if path is None:
         yield None
         return
-    if path.exists():
+    if path.exists() and not (create and overwrite):
         s = Session.open(path, writable=True)
     elif create:
-        s = Session.create(path, description=description)
+        s = Session.create(path, description=description, overwrite=overwrite)
     else:
         raise ValidationError([Problem("SESSION", "no such session file; check the path", str(path))])
     with s:
@@ -202,7 +206,7 @@ def calibrate(args: argparse.Namespace) -> int:
         inputs = {"image_xy": np.c_[cols["x"], cols["y"]], "plane_xy": np.c_[cols["plane_x"], cols["plane_y"]],
                   "camera_center": center}
         attrs = {"points_csv": str(args.points)}
-    with _session(args.session, True, "mirrorlab calibrate") as s:
+    with _session(args.session, True, "mirrorlab calibrate", args.overwrite) as s:
         if s is not None:
             from .plugin import require_new_camera, store_calibration
 
@@ -284,7 +288,8 @@ def reconstruct(args: argparse.Namespace) -> int:
             csv_inputs = {"real_xy": table.xy("x", "y"), "virtual_xy": table.xy("xv", "yv")}
         else:
             csv_inputs = {"image_xy": table.xy("x", "y")}
-    with _session(args.session, bool(args.markers), f"mirrorlab reconstruct --method {args.method}") as s:
+    with _session(args.session, bool(args.markers), f"mirrorlab reconstruct --method {args.method}",
+                  args.overwrite) as s:
         inputs: dict[str, Any] = {**_camera_inputs(args, s, algorithm), **csv_inputs}
         for item in args.input:
             name, sep, path = item.partition("=")

@@ -26,9 +26,11 @@ from __future__ import annotations
 
 import csv
 import os
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 from mirrorlab.core.errors import Problem, ValidationError
@@ -70,23 +72,33 @@ def _records(p: Path, names: Sequence[str]) -> Iterator[tuple[int, list[str]]]:
     """Yield ``(line number, cells of the named columns)`` of every data row; check file and header."""
     if not p.is_file():
         raise ValidationError([Problem("file", "no such CSV file; check the path", str(p))])
-    header: list[str] | None = None
     with p.open(newline="", encoding="utf-8-sig") as fh:
-        for lineno, row in enumerate(csv.reader(fh), start=1):
-            if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
-                continue
-            cells = [c.strip() for c in row]
-            if header is None:
-                header = [c.lower() for c in cells]
-                missing = [c for c in names if c not in header]
-                if missing:
-                    raise _fail(p, lineno, f"header {','.join(cells)} lacks the column(s) {', '.join(missing)}; "
-                                           f"expected at least {','.join(names)}")
-                cols = [header.index(c) for c in names]
-                continue
-            if len(cells) < len(header):
-                raise _fail(p, lineno, f"{len(cells)} fields, the header has {len(header)}")
-            yield lineno, [cells[c] for c in cols]
+        try:
+            yield from _rows(p, fh, names)
+        except UnicodeDecodeError as exc:
+            raise ValidationError([Problem("file", f"not UTF-8 text (byte {exc.start}); save it as a UTF-8 CSV",
+                                           str(p))]) from None
+        except csv.Error as exc:
+            raise ValidationError([Problem("file", f"not a readable CSV ({exc})", str(p))]) from None
+
+
+def _rows(p: Path, fh: TextIO, names: Sequence[str]) -> Iterator[tuple[int, list[str]]]:
+    header: list[str] | None = None
+    for lineno, row in enumerate(csv.reader(fh), start=1):
+        if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
+            continue
+        cells = [c.strip() for c in row]
+        if header is None:
+            header = [c.lower() for c in cells]
+            missing = [c for c in names if c not in header]
+            if missing:
+                raise _fail(p, lineno, f"header {','.join(cells)} lacks the column(s) {', '.join(missing)}; "
+                                       f"expected at least {','.join(names)}")
+            cols = [header.index(c) for c in names]
+            continue
+        if len(cells) < len(header):
+            raise _fail(p, lineno, f"{len(cells)} fields, the header has {len(header)}")
+        yield lineno, [cells[c] for c in cols]
     if header is None:
         raise _fail(p, 1, "the file is empty; expected a header " + ",".join(names))
 
@@ -224,6 +236,12 @@ def write_points_csv(path: str | os.PathLike[str], points: NDArray[np.float64],
 def read_points_csv(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], dict[str, NDArray[np.float64]]]:
     """Read a points CSV written by :func:`write_points_csv`: points (frames, markers, 3) and extra columns.
 
+    Raises
+    ------
+    ValidationError
+        Missing file, a header other than ``frame,marker,X,Y,Z[,...]``, a non-numeric value, a
+        negative or non-integer frame/marker, or no rows; names the file.
+
     Examples
     --------
     >>> import tempfile, os
@@ -233,15 +251,34 @@ def read_points_csv(path: str | os.PathLike[str]) -> tuple[NDArray[np.float64], 
     ((1, 2, 3), ['gap'])
     """
     p = Path(path)
-    with p.open() as fh:
-        names = fh.readline().strip().split(",")
-    data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
-    F, M = int(data[:, 0].max()) + 1, int(data[:, 1].max()) + 1
+    head = "frame,marker,X,Y,Z"
+    try:
+        with p.open(encoding="utf-8") as fh:
+            names = [c.strip() for c in fh.readline().split(",")]
+        if names[:5] != head.split(","):
+            raise ValueError(f"the header is {','.join(names)[:60]!r}, expected {head}[,...]")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "empty input file": reported below
+            data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+        if data.shape[0] == 0 or data.shape[1] != len(names):
+            raise ValueError(f"{data.shape[0]} rows of {data.shape[1]} columns under a header of {len(names)}")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else str(exc)
+        raise ValidationError([Problem("file", f"not a points CSV of mirrorlab ({reason}); write it with "
+                                               "`mirrorlab reconstruct --out`", str(p))]) from None
+    index = data[:, :2]
+    if not (np.all(np.isfinite(index)) and np.all(index >= 0) and np.all(index == np.round(index))):
+        raise ValidationError([Problem("file", "frame and marker must be integers >= 0", str(p))])
+    f, m = index.astype(np.int64).T
+    F, M = int(f.max()) + 1, int(m.max()) + 1
+    if F * M > MAX_CELLS:
+        raise ValidationError([Problem("file", f"frame/marker numbers up to {F - 1}/{M - 1} would need a {F} x {M} "
+                                               "array; number frames and markers from 0", str(p))])
     pts = np.full((F, M, 3), np.nan)
-    pts[data[:, 0].astype(int), data[:, 1].astype(int)] = data[:, 2:5]
+    pts[f, m] = data[:, 2:5]
     extra = {}
     for j, name in enumerate(names[5:], start=5):
         a = np.full((F, M), np.nan)
-        a[data[:, 0].astype(int), data[:, 1].astype(int)] = data[:, j]
+        a[f, m] = data[:, j]
         extra[name] = a
     return pts, extra

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from mirrorlab.core.errors import MirrorlabWarning
 from mirrorlab.plugins.kinematics import (
     KinematicsIOError,
     read_c3d,
@@ -31,7 +32,8 @@ def test_read_c3d_real(data_dir):
 
 
 def test_read_trc_real_truncated(data_dir):
-    d = read_trc(data_dir / "mocap" / "markers.trc")
+    with pytest.warns(MirrorlabWarning, match="declares 652 frames but the file holds 93"):
+        d = read_trc(data_dir / "mocap" / "markers.trc")
     assert d.rate == 100.0 and d.points.shape == (93, 51, 3)  # header says 652 frames
     assert d.labels[:2] == ["ASISl", "ASISr"] and d.labels[0] != ""
     assert d.points[0, 0] == pytest.approx([733.7041, 80.9832, 191.8668])
