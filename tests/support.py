@@ -30,6 +30,26 @@ def run_cli(*args: str, sites: tuple[Path, ...] = (), cwd: Path | None = None,
                           env=env, cwd=cwd or REPO, timeout=timeout)
 
 
+#: A recipe whose `run` step fails (the acme drift rate skips more than the 0.3 s recorded).
+ACME_FAILING_RECIPE = """
+[instruments.thermo]
+plugin = "acme_thermometer"
+simulate = true
+[instruments.thermo.simulator]
+clock = "FAST"
+
+[[steps]]
+action = "acquire"
+seconds = 0.3
+
+[[steps]]
+action = "run"
+algorithm = "acme_drift_rate"
+inputs = { time = "/instruments/thermo/temperature/time", values = "/instruments/thermo/temperature/data" }
+parameters = { skip = "100 s" }
+"""
+
+
 SMALL_SESSION = """
 import sys
 from mirrorlab.core import Session

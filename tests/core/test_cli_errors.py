@@ -11,25 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tests.support import REPO, run_cli
-
-FAILING_RUN = """
-[instruments.thermo]
-plugin = "acme_thermometer"
-simulate = true
-[instruments.thermo.simulator]
-clock = "FAST"
-
-[[steps]]
-action = "acquire"
-seconds = 0.3
-
-[[steps]]
-action = "run"
-algorithm = "acme_drift_rate"
-inputs = { time = "/instruments/thermo/temperature/time", values = "/instruments/thermo/temperature/data" }
-parameters = { skip = "100 s" }
-"""
+from tests.support import ACME_FAILING_RECIPE, REPO, run_cli
 
 
 @pytest.fixture
@@ -66,7 +48,7 @@ def test_analyze_says_what_it_produced(series: Path) -> None:
 
 def test_failing_run_step_is_reported_once_on_stderr(tmp_path: Path, acme_site: Path) -> None:
     recipe = tmp_path / "failing.toml"
-    recipe.write_text(FAILING_RUN)
+    recipe.write_text(ACME_FAILING_RECIPE)
     proc = run_cli("run", str(recipe), "--out", str(tmp_path / "f.h5"), sites=(acme_site,))
     assert proc.returncode == 1
     assert _mentions(proc, "need at least 2 samples after skip") == 1, proc.stderr + proc.stdout

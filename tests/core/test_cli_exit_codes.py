@@ -14,27 +14,10 @@ import numpy as np
 import pytest
 
 from tests.photogrammetry_plugin.scenes import F1, grid_points
-from tests.support import REPO, SHARED_DATA, run_cli
+from tests.support import ACME_FAILING_RECIPE, REPO, SHARED_DATA, run_cli
 
 C3D = SHARED_DATA / "mocap" / "markers_analogs.c3d"
 
-ACME_FAILING = """
-[instruments.thermo]
-plugin = "acme_thermometer"
-simulate = true
-[instruments.thermo.simulator]
-clock = "FAST"
-
-[[steps]]
-action = "acquire"
-seconds = 0.3
-
-[[steps]]
-action = "run"
-algorithm = "acme_drift_rate"
-inputs = { time = "/instruments/thermo/temperature/time", values = "/instruments/thermo/temperature/data" }
-parameters = { skip = "100 s" }
-"""
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +38,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> Path:
     import cv2
 
     cv2.imwrite(str(d / "blank" / "white.png"), np.full((120, 160), 255, np.uint8))
-    (d / "failing.toml").write_text(ACME_FAILING)
+    (d / "failing.toml").write_text(ACME_FAILING_RECIPE)
     return d
 
 

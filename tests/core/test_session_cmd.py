@@ -31,7 +31,8 @@ def scanned(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_check_exits_1_for_an_aborted_recording(tmp_path: Path) -> None:
     path = tmp_path / "aborted.h5"
-    with pytest.raises(RuntimeError), Session.create(path):
+    with pytest.raises(RuntimeError), Session.create(path) as s:
+        s.write_group("calibration/cam", {"k": np.eye(3)})  # something kept, so the file stays
         raise RuntimeError("the instrument stopped")  # leaving `with` by an exception aborts it
     proc = run_cli("session", "check", str(path))
     assert proc.returncode == 1, proc.stdout
