@@ -176,7 +176,8 @@ class LineClient:
         try:
             self.port.write(data)
             self.port.flush()
-        except _PORT_ERRORS as exc:
+        # a port closed by another thread meanwhile fails in many ways (socket gone: TypeError)
+        except (*_PORT_ERRORS, TypeError, AttributeError, ValueError) as exc:
             raise DeviceDisconnected(f"{self.device}: write failed ({exc}); check the cable and power") from exc
 
     def _drain_stale(self) -> None:

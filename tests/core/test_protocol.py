@@ -14,10 +14,16 @@ from mirrorlab.core.devices import Delay, LineClient, LineSimulator, SimulatorSe
 class Slow(LineSimulator):
     kind = "TEST"
 
+    def __init__(self, seed: int = 0) -> None:
+        super().__init__(seed)
+        self.running = threading.Event()  # set while SLOW runs: tests abort on it, not after a delay
+
     def cmd_SLOW(self, args: list[str]) -> Iterator[str | Delay]:
-        for i in range(5):
+        self.running.set()
+        for i in range(int(args[0]) if args else 5):
             yield f"D {i}"
             yield Delay(0.1)
+        self.running.clear()
         yield "OK done"
 
 
@@ -50,10 +56,12 @@ def test_a_late_reply_is_never_taken_for_the_next_command(client: tuple[LineClie
 
 
 def test_abort_interrupts_a_running_command(client: tuple[LineClient, SimulatorServer]) -> None:
-    c, _ = client
-    threading.Timer(0.15, c.abort).start()
+    c, server = client
+    aborter = threading.Thread(target=lambda: server.model.running.wait(60) and c.abort())
+    aborter.start()
     with pytest.raises(DeviceReplyError, match="E09 aborted"):
-        c.query("SLOW")
+        c.query("SLOW 600", timeout=120)  # 60 s unless aborted: the abort comes while it runs
+    aborter.join()
     assert c.query("PING").fields == ["PONG"]  # ABORT's own OK was consumed
     c.abort()  # with nothing running: a plain ABORT command
     assert c.query("PING").fields == ["PONG"]
