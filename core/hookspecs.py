@@ -34,6 +34,7 @@ import pluggy
 
 if TYPE_CHECKING:
     from .algorithms import Algorithm, ResultRef
+    from .controllers import Controller
     from .devices import Instrument
     from .session import Session
     from .steps import Step
@@ -61,6 +62,16 @@ def mirrorlab_register_algorithms() -> list[type[Algorithm]]:
 
     Each class subclasses :class:`mirrorlab.core.algorithms.Algorithm`: a pure function of its
     input arrays and typed parameters, runnable from the CLI, a recipe, the TUI or a script.
+    """
+
+
+@hookspec
+def mirrorlab_register_controllers() -> list[type[Controller]]:
+    """Return the controller classes this plugin provides.
+
+    Each class subclasses :class:`mirrorlab.core.controllers.Controller`: live logic (a closed
+    loop, a set-point schedule) that subscribes to streams and commands instruments while the
+    session acquires, with everything it did recorded under ``/controllers/<label>``.
     """
 
 

@@ -29,7 +29,7 @@ ENTRY_POINT_GROUP = "mirrorlab"
 BUILTIN_PLUGINS = ("mirrorlab.core.steps", "mirrorlab.instruments")
 #: Module whose ``builtin_plugins()`` lists further built-in plugins, each loaded on its own.
 BUILTIN_ADAPTERS = "mirrorlab.plugins"
-KINDS = ("instrument", "algorithm", "step")
+KINDS = ("instrument", "algorithm", "controller", "step")
 _REQUIRED = ("name", "version", "description", "parameters")
 
 
@@ -104,6 +104,7 @@ class Registry:
         """Call the registration hooks of one plugin; all its classes count, or none of them."""
         hooks = {"instrument": "mirrorlab_register_instruments",
                  "algorithm": "mirrorlab_register_algorithms",
+                 "controller": "mirrorlab_register_controllers",
                  "step": "mirrorlab_register_steps"}
         plugin = self.pm.get_plugin(plugin_name)
         found: list[tuple[str, type]] = []
@@ -173,6 +174,9 @@ class Registry:
 
     def algorithm(self, name: str) -> type:
         return self.get("algorithm", name)
+
+    def controller(self, name: str) -> type:
+        return self.get("controller", name)
 
     def step(self, name: str) -> type:
         return self.get("step", name)
