@@ -89,6 +89,10 @@ class Parameter:
         Allowed values (for ``str`` or ``int``).
     help
         One line shown in ``--help``, ``mirrorlab plugins show`` and TUI forms.
+    live
+        Settable while the instrument acquires, one value at a time, through
+        :meth:`mirrorlab.core.devices.Instrument.set` (a set-point: a target angle, a gain);
+        other settings change only through a full ``configure``.
     """
 
     name: str
@@ -98,6 +102,7 @@ class Parameter:
     bounds: tuple[float | None, float | None] | None = None
     choices: tuple[Any, ...] | None = None
     help: str = ""
+    live: bool = False
 
     def __post_init__(self) -> None:
         if self.type not in _TYPE_NAMES:
@@ -200,6 +205,7 @@ class Parameter:
             "choices": list(self.choices) if self.choices else None,
             "help": self.help,
             "required": self.required,
+            "live": self.live,
         }
 
 

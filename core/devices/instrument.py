@@ -32,7 +32,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..errors import DeviceDisconnected, DeviceError, DeviceTimeout, MirrorlabError, ProtocolError
+from ..errors import (
+    DeviceDisconnected,
+    DeviceError,
+    DeviceTimeout,
+    MirrorlabError,
+    Problem,
+    ProtocolError,
+    ValidationError,
+)
 from ..params import ParameterSet
 from ..streams import StreamSpec
 from .protocol import LineClient, Reply
@@ -115,6 +123,7 @@ class Instrument(ABC):
         self.failed: BaseException | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._set_lock = threading.Lock()  # one set-point at a time, whichever thread sends it
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.label!r} port={self.port!r}>"
@@ -173,6 +182,50 @@ class Instrument(ABC):
         self.settings = self.parameters.validate(merged, where=f"instruments.{self.label}.settings")
         self.apply_settings(self.settings)
         return dict(self.settings)
+
+    def set(self, name: str, value: Any, timeout: float | None = None) -> Any:
+        """Change one live-settable parameter (a set-point) and return when the device acknowledged it.
+
+        Only ``name`` is validated (against its declaration and the other current settings) and
+        sent; nothing else is re-sent. Safe to call from any thread, also while acquiring.
+
+        Parameters
+        ----------
+        name
+            A parameter declared with ``live=True``.
+        value
+            New value, in the parameter's unit (or a ``"<number> <unit>"`` string).
+        timeout
+            Seconds allowed for the acknowledgement (default: the instrument's ``timeout``).
+
+        Returns the value as validated and applied.
+        """
+        if name not in self.parameters:
+            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
+                                           f"{self.name} has no parameter {name!r}")])
+        if not self.parameters[name].live:
+            live = [p.name for p in self.parameters if p.live]
+            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
+                                           "not live-settable; change it with configure() "
+                                           f"(live-settable: {', '.join(live) or 'none'})")])
+        settings = self.parameters.validate({**self.settings, name: value},
+                                            where=f"instruments.{self.label}.settings")
+        with self._set_lock:
+            self.apply_setpoint(name, settings[name], self.timeout if timeout is None else timeout)
+            self.settings[name] = settings[name]
+        return settings[name]
+
+    def apply_setpoint(self, name: str, value: Any, timeout: float) -> None:
+        """Send one validated live parameter and wait up to ``timeout`` s for the acknowledgement.
+
+        Instruments with ``live=True`` parameters override this; the base class has none.
+        """
+        raise DeviceError(f"{self.device_name} declares {name!r} live but does not implement apply_setpoint()")
+
+    def hold(self) -> None:
+        """Stop moving and keep the present position (told when a controller commanding this
+        instrument fails). Instruments that move override it; a sensor has nothing to hold."""
+        return None
 
     def metadata(self) -> dict[str, Any]:
         """Plugin, version, settings and identity: stored as the instrument group's attributes."""
