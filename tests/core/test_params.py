@@ -67,4 +67,4 @@ def test_describe_is_json_ready() -> None:
 
     desc = json.loads(json.dumps(PARAMS.describe()))
     assert desc[0] == {"name": "exposure", "type": "float", "default": 0.01, "unit": "s", "bounds": [1e-4, 1.0],
-                       "choices": None, "help": "exposure", "required": False}
+                       "choices": None, "help": "exposure", "required": False, "live": False}
