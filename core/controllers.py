@@ -60,6 +60,9 @@ class Controller:
     inputs: ClassVar[Mapping[str, str]] = {}
     #: Commanded instrument role -> names of the live-settable parameters the controller sets.
     commands: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: Hand :meth:`on_block` only the newest waiting block of each input (a loop that fell behind
+    #: catches up instead of replaying stale samples); ``False``: every block, in order (a filter).
+    latest_only: ClassVar[bool] = False
 
     def __init__(self, label: str, settings: Mapping[str, Any] | None = None) -> None:
         self.label = label
@@ -68,6 +71,11 @@ class Controller:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.label!r}>"
+
+    def commanded(self) -> Mapping[str, tuple[str, ...]]:
+        """Role -> live parameters this instance sets (default: :attr:`commands`; a controller whose
+        parameter names come from its settings overrides it)."""
+        return self.commands
 
     def streams(self) -> list[StreamSpec]:
         """Streams this controller emits besides its set-points and latency (default: none)."""

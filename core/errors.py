@@ -84,6 +84,11 @@ class DataError(MirrorlabError):
     """
 
 
+class StoppedOnRequest(MirrorlabError):
+    """Work ended early because :meth:`Session.request_stop` (or Ctrl-C) asked it to; what was
+    done is kept."""
+
+
 class AlgorithmError(MirrorlabError):
     """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
 
@@ -109,6 +114,11 @@ class DeviceDisconnected(DeviceError):
 
 class ProtocolError(DeviceError):
     """A device sent bytes that do not follow its protocol (garbage, wrong reply shape)."""
+
+
+class ConfigurationError(DeviceError):
+    """A device or source cannot work as configured (no such folder, the port holds another kind
+    of device): retrying cannot help, so an acquiring instrument stops at once; fix the setting."""
 
 
 class DeviceReplyError(DeviceError):

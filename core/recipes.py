@@ -14,8 +14,15 @@
     [instruments.cam.simulator]    # only with simulate = true
     clock = "FAST"
 
+    [controllers.loop]             # optional: live logic between streams and instruments
+    plugin = "follow"              # a registered controller plugin
+    inputs = { input = "tracker/angle" }        # role = "<instrument>/<stream>"
+    instruments = { output = "mirror" }          # role = instrument label
+    [controllers.loop.settings]
+    gain = 0.5
+
     [[steps]]                      # executed in order
-    action = "acquire"             # a registered step kind: acquire | wait | run | ...
+    action = "acquire"             # a registered step kind: preview | acquire | wait | run | ...
     seconds = 10
 
 :func:`load_recipe` validates *everything* before anything starts and reports every problem with
@@ -33,7 +40,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from .errors import PluginError, Problem, ValidationError
+from .errors import MirrorlabError, PluginError, Problem, StoppedOnRequest, ValidationError
 from .params import Parameter, ParameterSet
 from .registry import Registry, get_registry
 from .session import SIMULATOR_OPTIONS, Session
@@ -47,7 +54,10 @@ INSTRUMENT_KEYS = ParameterSet(
     Parameter("simulate", bool, False, help="drive the plugin's simulator instead of a device"),
     Parameter("port", str, "", help="device path or pyserial URL of the real device"),
     Parameter("timeout", float, 2.0, unit="s", bounds=(0.01, 600.0), help="seconds per device call"),
+    Parameter("reconnect", float, 60.0, unit="s", bounds=(0.0, 7 * 24 * 3600.0),
+              help="seconds of reconnect attempts after a lost connection before the instrument fails (0: never)"),
 )
+CONTROLLER_TABLES = ("settings", "inputs", "instruments")
 
 
 @dataclass
@@ -57,8 +67,18 @@ class InstrumentPlan:
     simulate: bool
     port: str
     timeout: float
+    reconnect: float
     settings: dict[str, Any]
     simulator: dict[str, Any]
+
+
+@dataclass
+class ControllerPlan:
+    label: str
+    plugin: str
+    settings: dict[str, Any]
+    inputs: dict[str, str]
+    instruments: dict[str, str]
 
 
 @dataclass
@@ -81,6 +101,7 @@ class Recipe:
     operator: str
     instruments: list[InstrumentPlan] = field(default_factory=list)
     steps: list[StepPlan] = field(default_factory=list)
+    controllers: list[ControllerPlan] = field(default_factory=list)
 
     def default_output(self, root: Path | None = None) -> Path:
         """``sessions/out/<recipe>-<UTC timestamp>.h5`` next to the recipe's folder."""
@@ -151,8 +172,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     problems: list[Problem] = []
 
     for key in data:
-        if key not in ("session", "instruments", "steps"):
-            problems.append(Problem(key, "unknown top-level table; expected session, instruments, steps", file))
+        if key not in ("session", "instruments", "controllers", "steps"):
+            problems.append(Problem(key, "unknown top-level table; expected session, instruments, controllers, "
+                                    "steps", file))
     session, more = SESSION_KEYS.problems(_table(data, "session", problems, file), "session", file)
     problems += more
 
@@ -189,7 +211,10 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
             problems.append(Problem(f"{where}.port", "required unless simulate = true "
                                     "(device path or pyserial URL)", file))
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
-                                          values["timeout"], settings, simulator))
+                                          values["timeout"], values["reconnect"], settings, simulator))
+
+    controllers = [plan for label, table in _table(data, "controllers", problems, file).items()
+                   if (plan := _controller_plan(label, table, instruments, registry, problems, file))]
 
     steps: list[StepPlan] = []
     raw_steps = data.get("steps", [])
@@ -216,7 +241,57 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     if problems:
         raise ValidationError(problems)
     return Recipe(path, text, list(overrides), data, session["description"], session["operator"],
-                  instruments, steps)
+                  instruments, steps, controllers)
+
+
+def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], registry: Registry,
+                     problems: list[Problem], file: str) -> ControllerPlan | None:
+    """Validate ``[controllers.<label>]``: plugin, settings, and bindings to the recipe's instruments."""
+    where = f"controllers.{label}"
+    if not isinstance(table, Mapping):
+        problems.append(Problem(where, "must be a table", file))
+        return None
+    for key in set(table) - {"plugin", *CONTROLLER_TABLES}:
+        problems.append(Problem(f"{where}.{key}", f"unknown key; expected plugin, {', '.join(CONTROLLER_TABLES)}", file))
+    try:
+        cls = registry.controller(str(table.get("plugin", "")))
+    except PluginError as exc:
+        problems.append(Problem(f"{where}.plugin", str(exc) if "plugin" in table else
+                                "required: a registered controller (`mirrorlab plugins` lists them)", file))
+        return None
+    settings, more = cls.parameters.problems(_table(table, "settings", problems, file, where), f"{where}.settings", file)
+    problems += more
+    if more:
+        return None
+    inputs = {k: str(v) for k, v in _table(table, "inputs", problems, file, where).items()}
+    bound = {k: str(v) for k, v in _table(table, "instruments", problems, file, where).items()}
+    plans = {p.label: p for p in instruments}
+    for role in sorted(set(inputs) ^ set(cls.inputs)):
+        problems.append(Problem(f"{where}.inputs.{role}", f"{cls.name} has no input {role!r}" if role in inputs else
+                                f"required: '<instrument>/<stream>' ({cls.inputs[role]})", file))
+    for role, ref in inputs.items():
+        instrument, _, stream = ref.partition("/")
+        if role in cls.inputs and (instrument not in plans or not stream):
+            problems.append(Problem(f"{where}.inputs.{role}", f"{ref!r} is not '<instrument>/<stream>' of an "
+                                    f"instrument of the recipe ({', '.join(plans) or 'none'})", file))
+    commanded = cls(label, settings).commanded()
+    for role in sorted(set(bound) ^ set(commanded)):
+        problems.append(Problem(f"{where}.instruments.{role}", f"{cls.name} commands no {role!r}" if role in bound
+                                else "required: the label of an instrument of the recipe", file))
+    for role, instrument in bound.items():
+        if role not in commanded:
+            continue
+        plan = plans.get(instrument)
+        if plan is None:
+            problems.append(Problem(f"{where}.instruments.{role}", f"no instrument {instrument!r} in the recipe; "
+                                    f"it has: {', '.join(plans) or 'none'}", file))
+            continue
+        params = registry.instrument(plan.plugin).parameters
+        not_live = [n for n in commanded[role] if n not in params or not params[n].live]
+        if not_live:
+            problems.append(Problem(f"{where}.instruments.{role}", f"{plan.plugin} {instrument!r} has no "
+                                    f"live-settable {', '.join(not_live)}, which {cls.name} sets", file))
+    return ControllerPlan(label, cls.name, settings, inputs, bound)
 
 
 def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str, where: str = "") -> dict:
@@ -235,17 +310,46 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
     the error propagates; a failure before anything was recorded or stored (an instrument that
     would not connect) leaves no file (see :meth:`Session.create`). ``overwrite`` replaces an
     existing ``out``.
+
+    :meth:`Session.request_stop` (the operator, or the first Ctrl-C of ``mirrorlab run``) ends
+    the running step and runs no further one: the session is closed cleanly, the reason logged,
+    and :class:`~mirrorlab.core.errors.StoppedOnRequest` raised after the file is closed. A
+    :class:`KeyboardInterrupt` that gets through closes it ``aborted``, with the reason logged.
     """
     record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
               "effective": json.loads(json.dumps(recipe.data, default=str))}
+    stopped = ""
     with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
                         registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
-        for plan in recipe.instruments:
-            session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
-                                   simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout)
-        for step in recipe.steps:
-            session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
-            step.cls().execute(session, step.values)
+        step = None
+        try:
+            with session.operation():
+                for plan in recipe.instruments:
+                    session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
+                                           simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,
+                                           reconnect=plan.reconnect)
+                for c in recipe.controllers:
+                    session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs,
+                                           instruments=c.instruments)
+                for step in recipe.steps:
+                    if session.stop_requested:
+                        break
+                    session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
+                    try:
+                        step.cls().execute(session, step.values)
+                    except MirrorlabError:
+                        if not session.stop_requested:
+                            raise
+                if session.stop_requested:
+                    where = f"during step {step.index} ({step.action})" if step is not None else "before the first step"
+                    stopped = f"stopped on request {where}; later steps were not run"
+                    session.close(reason=stopped)
+        except KeyboardInterrupt:
+            where = f" during step {step.index} ({step.action})" if step is not None else ""
+            session.close("aborted", reason=f"interrupted (Ctrl-C){where}")
+            raise
+    if stopped:
+        raise StoppedOnRequest(f"{stopped}; the session file keeps everything recorded: {out}")
     return out

@@ -23,17 +23,20 @@ each algorithm run into a new ``/results/<algorithm>/<run-id>`` group that is ne
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import platform
 import socket
 import sys
+import threading
 import time
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import h5py
@@ -41,11 +44,14 @@ import numpy as np
 
 from .algorithms import Algorithm, ResultRef, RunContext, execute
 from .clock import SessionClock, utc_now_iso
+from .controller_runtime import ControllerRunner
+from .controllers import Controller
 from .devices import Instrument, SerialInstrument, SimulatorServer
 from .errors import Problem, SessionError, SessionExistsError, ValidationError
 from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
 from .registry import Registry, get_registry
+from .snapshot import ControllerSnapshot, InstrumentSnapshot, RecorderSnapshot, SessionSnapshot
 from .store import files, schema
 from .store.recorder import Recorder
 from .store.schema import LIBVER
@@ -99,9 +105,19 @@ class Session:
         self.events = EventBus(self.clock)
         self.router = StreamRouter(on_overflow=self._on_overflow)
         self.instruments: dict[str, Instrument] = {}
+        self.controllers: dict[str, ControllerRunner] = {}
         self._simulators: dict[str, SimulatorServer] = {}
+        # One lock for every change of state (instruments, acquisition, recording, closing), so a UI
+        # thread and a script thread never race; snapshot() takes none.
+        self._lock = threading.RLock()
+        self._cancel = threading.Event()  # set by request_stop()
+        self._operations = 0
+        self._acquiring: set[str] = set()
         self._recorder: Recorder | None = None
+        self._last_recorder: Recorder | None = None
         self._recording: list[str] = []
+        self._recorded_controllers: list[str] = []
+        self._reconnects_at_start: dict[str, int] = {}
         self._closed = False
         self._created = False
         self._draft: Path | None = None  # the file as created, until _commit (see create)
@@ -260,7 +276,8 @@ class Session:
     # -- instruments -----------------------------------------------------------------------------
     def add_instrument(self, label: str, plugin: str, *, port: str | None = None,
                        settings: Mapping[str, Any] | None = None, simulate: bool = False,
-                       simulator: Mapping[str, Any] | None = None, timeout: float = 2.0) -> Instrument:
+                       simulator: Mapping[str, Any] | None = None, timeout: float = 2.0,
+                       reconnect: float | None = 60.0) -> Instrument:
         """Create, connect, identify and configure an instrument and describe it in the file.
 
         Parameters
@@ -280,19 +297,30 @@ class Session:
             Simulator options: ``seed``, ``clock`` (``REAL``/``FAST``), ``transport`` (``pty``/``tcp``).
         timeout
             Seconds allowed for each device call.
+        reconnect
+            Reconnect budget: seconds of attempts after a lost connection before the instrument is
+            ``failed`` (``None``: keep trying; 0: never reconnect).
         """
+        with self._lock:
+            return self._add_instrument(label, plugin, port, settings, simulate, simulator, timeout, reconnect)
+
+    def _add_instrument(self, label: str, plugin: str, port: str | None, settings: Mapping[str, Any] | None,
+                        simulate: bool, simulator: Mapping[str, Any] | None, timeout: float,
+                        reconnect: float | None) -> Instrument:
         self._require_writable("add an instrument")
         if label in self.instruments or f"instruments/{label}" in self.file:
             raise SessionError(f"an instrument labelled {label!r} is already in this session; pick another label")
         cls = self.registry.instrument(plugin)
         sim_options = SIMULATOR_OPTIONS.validate(dict(simulator or {}), where=f"instruments.{label}.simulator")
         instrument: Instrument = cls(label, port, settings, timeout, report=self._reporter(label))
+        instrument.reconnect_budget = reconnect
         # Only a device on a port has a simulator to serve; other sources (files, a virtual
         # scene) are their own simulation.
         served = simulate and cls.needs_port(instrument.settings)
         if served:
             server = self._start_simulator(cls, instrument.settings, sim_options, label)
             instrument.port = server.url
+        instrument.set_state("connecting")
         try:
             instrument.connect()
             instrument.identify()
@@ -300,10 +328,12 @@ class Session:
                 instrument.simulate_query(f"SIM:SEED {sim_options['seed']}")
                 instrument.simulate_query(f"SIM:CLOCK {sim_options['clock']}")
             instrument.configure()
+            instrument.refresh_status()
         except BaseException:
             instrument.close()
             self._stop_simulator(label)
             raise
+        instrument.set_state("idle")
         self.instruments[label] = instrument
         g = self.file["instruments"].create_group(label)
         meta = instrument.metadata()
@@ -357,9 +387,182 @@ class Session:
                          f"recorder queue full: {dropped} samples of {block.instrument}/{block.stream} "
                          "dropped so far (the disk or the recorder cannot keep up)", dropped=dropped)
 
-    def subscribe(self, instrument: str, stream: str, maxlen: int = 1024) -> Subscription:
-        """Live view of a stream (latest block, ring buffer), independent of the file."""
-        return self.router.subscribe(instrument, stream, maxlen)
+    def subscribe(self, source: str, stream: str, max_bytes: int = 64 << 20) -> Subscription:
+        """Live view of a stream of an instrument or controller, independent of the file.
+
+        The subscription holds at most ``max_bytes`` of unread blocks (oldest dropped first) and is
+        released by its ``close()``, its ``with`` block or the session's close.
+        """
+        return self.router.subscribe([(source, stream)], max_bytes)
+
+    # -- controllers -----------------------------------------------------------------------------
+    def add_controller(self, label: str, plugin: str | type[Controller], *,
+                       settings: Mapping[str, Any] | None = None, inputs: Mapping[str, str] | None = None,
+                       instruments: Mapping[str, str] | None = None) -> ControllerRunner:
+        """Add a controller bound to streams and instruments of this session.
+
+        Parameters
+        ----------
+        label
+            Its name in this session (HDF5 group ``/controllers/<label>``).
+        plugin
+            Registered controller name (``mirrorlab plugins`` lists them) or class.
+        settings
+            Controller settings, validated against its parameters.
+        inputs
+            Input role -> ``"<instrument>/<stream>"`` it subscribes to.
+        instruments
+            Commanded role -> instrument label; the parameters it sets must be live-settable.
+
+        It starts with acquisition, after its instruments, and stops before them; while recording,
+        its set-points, their latencies and its streams are recorded under ``/controllers/<label>``.
+        """
+        with self._lock:
+            self._require_writable("add a controller")
+            if label in self.controllers or label in self.instruments:
+                raise SessionError(f"{label!r} already names an instrument or controller of this session; "
+                                   "pick another label")
+            cls = self.registry.controller(plugin) if isinstance(plugin, str) else plugin
+            controller = cls(label, settings)
+            where = f"controllers.{label}"
+            bound_inputs, bound_instruments, problems = self._bind(controller, where, dict(inputs or {}),
+                                                                   dict(instruments or {}))
+            if problems:
+                raise ValidationError(problems)
+            runner = ControllerRunner(controller, bound_inputs, bound_instruments, Emitter(label, self.router, self.clock),
+                                      self.router.subscribe, self._reporter(label))
+            runner.emitter.streams = {s.name: s for s in runner.streams()}
+            self._commit()
+            g = self.file.require_group("controllers").create_group(label)
+            g.attrs.update({"plugin": cls.name, "version": cls.version, "description": cls.description})
+            schema.set_json(g, "settings", to_jsonable(controller.settings))
+            schema.set_json(g, "inputs", dict(inputs or {}))
+            schema.set_json(g, "instruments", dict(instruments or {}))
+            self.file.flush()
+            self.controllers[label] = runner
+            self.events.emit("info", label, "controller_added", f"controller {cls.name} {label!r} ready")
+            if self._acquiring:
+                self._start_controllers()
+            return runner
+
+    def _bind(self, controller: Controller, where: str, inputs: dict[str, str], instruments: dict[str, str]
+              ) -> tuple[dict[str, tuple[str, str]], dict[str, Instrument], list[Problem]]:
+        """Check a controller's bindings against its declared roles and this session's instruments."""
+        cls = type(controller)
+        commanded = controller.commanded()
+        problems: list[Problem] = []
+        bound_inputs: dict[str, tuple[str, str]] = {}
+        bound_instruments: dict[str, Instrument] = {}
+        for role in set(inputs) - set(cls.inputs):
+            problems.append(Problem(f"{where}.inputs.{role}", f"{cls.name} has no input {role!r}; "
+                                    f"its inputs: {', '.join(cls.inputs) or 'none'}"))
+        for role, what in cls.inputs.items():
+            ref = inputs.get(role)
+            if ref is None:
+                problems.append(Problem(f"{where}.inputs.{role}", f"required: \"<instrument>/<stream>\" ({what})"))
+                continue
+            label, _, stream = str(ref).partition("/")
+            inst = self.instruments.get(label)
+            streams = [s.name for s in inst.streams()] if inst is not None else []
+            if inst is None or stream not in streams:
+                problems.append(Problem(f"{where}.inputs.{role}", f"{ref!r} is no stream of this session; " + (
+                    f"{label} has: {', '.join(streams)}" if inst is not None else
+                    f"instruments: {', '.join(self.instruments) or 'none'}")))
+                continue
+            bound_inputs[role] = (label, stream)
+        for role in set(instruments) - set(commanded):
+            problems.append(Problem(f"{where}.instruments.{role}", f"{cls.name} commands no {role!r}; "
+                                    f"it commands: {', '.join(commanded) or 'nothing'}"))
+        for role, names in commanded.items():
+            label = instruments.get(role)
+            inst = self.instruments.get(str(label))
+            if inst is None:
+                problems.append(Problem(f"{where}.instruments.{role}", f"required: the label of an instrument "
+                                        f"of this session ({', '.join(self.instruments) or 'none'})"
+                                        + (f"; {label!r} is not one" if label is not None else "")))
+                continue
+            not_live = [n for n in names if n not in inst.parameters or not inst.parameters[n].live]
+            if not_live:
+                problems.append(Problem(f"{where}.instruments.{role}", f"{inst.name} {label!r} has no live-settable "
+                                        f"{', '.join(not_live)}, which {cls.name} sets"))
+                continue
+            bound_instruments[role] = inst
+        return bound_inputs, bound_instruments, problems
+
+    def _start_controllers(self) -> None:
+        """Start every controller whose instruments all acquire (inputs and commanded ones)."""
+        for runner in self.controllers.values():
+            if not runner.running and runner.state != "failed" and self._bound_labels(runner) <= self._acquiring:
+                runner.start()
+
+    @staticmethod
+    def _bound_labels(runner: ControllerRunner) -> set[str]:
+        return {label for label, _ in runner.inputs.values()} | {i.label for i in runner.instruments.values()}
+
+    # -- acquisition -----------------------------------------------------------------------------
+    @property
+    def acquiring(self) -> bool:
+        return bool(self._acquiring)
+
+    def _labels(self, instruments: Sequence[str] | None, what: str) -> list[str]:
+        if not self.instruments:
+            raise SessionError(f"no instruments to {what}; add one with add_instrument()")
+        labels = list(self.instruments) if instruments is None else list(instruments)
+        unknown = [label for label in labels if label not in self.instruments]
+        if unknown or not labels:
+            raise SessionError(f"cannot {what} {', '.join(unknown) or 'nothing'}; "
+                               f"instruments of this session: {', '.join(self.instruments)}")
+        return labels
+
+    def start_acquisition(self, instruments: Sequence[str] | None = None) -> None:
+        """Start instruments streaming to subscribers and controllers, without writing anything.
+
+        ``instruments`` names the labels (default: all). Instruments already acquiring go on
+        undisturbed; controllers start once all their instruments acquire. Use it to preview and
+        align before recording; :meth:`start_recording` then switches the file on without
+        restarting the devices.
+        """
+        with self._lock:
+            if self._closed:
+                raise SessionError(f"{self.path} is closed")
+            labels = self._labels(instruments, "acquire")
+            started = [label for label in labels if not self.instruments[label].running]
+            for label in started:
+                inst = self.instruments[label]
+                inst.start(Emitter(label, self.router, self.clock, {s.name: s for s in inst.streams()}))
+            self._acquiring |= set(labels)
+            self._start_controllers()
+            if started:
+                self.events.emit("info", "session", "acquisition_started", f"acquiring {', '.join(started)}",
+                                 instruments=started)
+
+    def stop_acquisition(self, instruments: Sequence[str] | None = None) -> None:
+        """Stop acquiring (all instruments, or ``instruments``); stops a recording of them first.
+
+        Controllers bound to a stopped instrument stop before it.
+        """
+        with self._lock:
+            labels = set(self._acquiring if instruments is None else instruments) & self._acquiring
+            if not labels:
+                return
+            if self._recorder is not None and labels & set(self._recording):
+                self.stop_recording()
+            self._halt(labels)
+
+    def _halt(self, labels: set[str]) -> None:
+        """Stop the controllers bound to ``labels``, then those instruments (recording untouched)."""
+        with self._lock:
+            labels &= self._acquiring
+            if not labels:
+                return
+            for runner in self.controllers.values():
+                if self._bound_labels(runner) & labels:
+                    runner.stop()
+            for label in labels:
+                self.instruments[label].stop()
+            self._acquiring -= labels
+            self.events.emit("info", "session", "acquisition_stopped", f"stopped acquiring {', '.join(sorted(labels))}",
+                             instruments=sorted(labels))
 
     # -- recording -------------------------------------------------------------------------------
     @property
@@ -367,83 +570,86 @@ class Session:
         return self._recorder is not None
 
     def start_recording(self, instruments: Sequence[str] | None = None) -> None:
-        """Declare the streams in the file, switch to SWMR and start the instruments.
+        """Declare the streams in the file, switch to SWMR and record ``instruments`` (default: all).
 
-        ``instruments`` names the labels to record (default: all of them).
+        Instruments not yet acquiring are started; those already acquiring (a preview) are not
+        restarted. Controllers whose instruments are all recorded are recorded too.
         """
-        self._require_writable("record")
-        if self._recorder is not None:
-            raise SessionError("already recording")
-        if not self.instruments:
-            raise SessionError("no instruments to record; add one with add_instrument()")
-        labels = list(self.instruments) if instruments is None else list(instruments)
-        unknown = [label for label in labels if label not in self.instruments]
-        if unknown or not labels:
-            raise SessionError(f"cannot record {', '.join(unknown) or 'nothing'}; "
-                               f"instruments of this session: {', '.join(self.instruments)}")
-        emitters = {}
-        for label in labels:
-            specs = self.instruments[label].streams()
-            group = self.file["instruments"][label]
-            for spec in specs:
-                schema.create_stream(group, spec)
-            emitters[label] = Emitter(label, self.router, self.clock, {s.name: s for s in specs})
-        self._write_pending_log()
-        self.file.flush()
-        self._commit()
-        self.file.swmr_mode = True  # from here on no object or attribute may be created
-        files.write_lock(self.path)  # tells `session check/close` a live writer has the file
-        self.router.recording = True
-        self._recorder = Recorder(self.file, self.router, self.events)
-        self._recorder.start()
-        self._recording = labels
-        self._record_start = time.monotonic()
-        self.events.emit("info", "session", "recording_started", "recording started", instruments=labels)
-        for label in labels:
-            self.instruments[label].start(emitters[label])
-        for message in self.registry.notify("mirrorlab_recording_started", session=self):
-            self.events.emit("warning", "session", "plugin_error", message)
+        with self._lock:
+            self._require_writable("record")
+            if self._recorder is not None:
+                raise SessionError("already recording; stop_recording() first")
+            labels = self._labels(instruments, "record")
+            runners = [r for r in self.controllers.values() if self._bound_labels(r) <= set(labels)]
+            paths: dict[tuple[str, str], str] = {}
+            for group, source, specs in [("instruments", label, self.instruments[label].streams()) for label in labels] + \
+                                        [("controllers", r.label, r.streams()) for r in runners]:
+                for spec in specs:
+                    schema.create_stream(self.file[group][source], spec)
+                    paths[(source, spec.name)] = f"{group}/{source}/{spec.name}"
+            self._write_pending_log()
+            self.file.flush()
+            self._commit()
+            self.file.swmr_mode = True  # from here on no object or attribute may be created
+            files.write_lock(self.path)  # tells `session check/close` a live writer has the file
+            self._recorder = Recorder(self.file, self.router, self.events, paths)
+            self._recorder.start()
+            self._recording = labels
+            self._recorded_controllers = [r.label for r in runners]
+            self._reconnects_at_start = {label: inst.reconnects for label, inst in self.instruments.items()}
+            self._record_start = time.monotonic()
+            self.router.start_recording(labels + self._recorded_controllers)
+            self.events.emit("info", "session", "recording_started", "recording started", instruments=labels,
+                             controllers=self._recorded_controllers)
+            self.start_acquisition(labels)
+            for message in self.registry.notify("mirrorlab_recording_started", session=self):
+                self.events.emit("warning", "session", "plugin_error", message)
 
     def stop_recording(self) -> dict[str, dict[str, int]]:
-        """Stop instruments, write what is queued, leave SWMR; returns per-stream statistics."""
-        if self._recorder is None:
-            raise SessionError("not recording")
-        for label in self._recording:
-            self.instruments[label].stop()
-        self.router.recording = False
-        self.recorded_seconds = time.monotonic() - self._record_start
-        recorder, self._recorder = self._recorder, None
-        try:
-            recorder.stop()
-        finally:
-            # Reopen without SWMR so attributes, results and new groups can be written again.
-            self.file.close()
-            self.file = h5py.File(self.path, "a", libver=LIBVER)
-            files.remove_lock(self.path)
-        stats = {}
-        for (inst, stream), st in self.router.stats.items():
-            stats[f"{inst}/{stream}"] = {"samples": recorder.written.get((inst, stream), 0),
-                                         "dropped": st.dropped_samples}
-        for label, inst in self.instruments.items():
-            g = self.file["instruments"][label]
-            g.attrs["reconnects"] = inst.reconnects
-            for name in g:
-                if isinstance(g[name], h5py.Group):
-                    g[name].attrs["dropped"] = stats.get(f"{label}/{name}", {}).get("dropped", 0)
-        dropped = sum(s["dropped"] for s in stats.values())
-        self.events.emit("warning" if dropped else "info", "session", "recording_stopped",
-                         f"recording stopped after {self.recorded_seconds:.1f} s: "
-                         f"{sum(s['samples'] for s in stats.values())} samples written, {dropped} dropped",
-                         statistics=stats, seconds=self.recorded_seconds)
-        self._write_pending_log()
-        self.file.flush()
-        for message in self.registry.notify("mirrorlab_recording_stopped", session=self, statistics=stats):
-            self.events.emit("warning", "session", "plugin_error", message)
-        return stats
+        """Write what is queued, leave SWMR; acquisition goes on. Returns per-stream statistics:
+        ``{"<source>/<stream>": {"samples": written, "dropped": dropped}}`` of this recording."""
+        with self._lock:
+            if self._recorder is None:
+                raise SessionError("not recording")
+            self.router.stop_recording()
+            self.recorded_seconds = time.monotonic() - self._record_start
+            recorder, self._recorder = self._recorder, None
+            self._last_recorder = recorder
+            try:
+                recorder.stop()
+            finally:
+                # Reopen without SWMR so attributes, results and new groups can be written again.
+                self.file.close()
+                self.file = h5py.File(self.path, "a", libver=LIBVER)
+                files.remove_lock(self.path)
+            stats = {f"{source}/{stream}": {"samples": recorder.written.get((source, stream), 0),
+                                            "dropped": st.dropped_samples}
+                     for (source, stream), st in self.router.stats.items()}
+            for group, sources in (("instruments", self._recording), ("controllers", self._recorded_controllers)):
+                for source in sources:
+                    g = self.file[group][source]
+                    if group == "instruments":
+                        g.attrs["reconnects"] = self.instruments[source].reconnects - self._reconnects_at_start[source]
+                    for name in g:
+                        if isinstance(g[name], h5py.Group):
+                            g[name].attrs["dropped"] = stats.get(f"{source}/{name}", {}).get("dropped", 0)
+            dropped = sum(s["dropped"] for s in stats.values())
+            self.events.emit("warning" if dropped else "info", "session", "recording_stopped",
+                             f"recording stopped after {self.recorded_seconds:.1f} s: "
+                             f"{sum(s['samples'] for s in stats.values())} samples written, {dropped} dropped",
+                             statistics=stats, seconds=self.recorded_seconds)
+            self._write_pending_log()
+            self.file.flush()
+            for message in self.registry.notify("mirrorlab_recording_stopped", session=self, statistics=stats):
+                self.events.emit("warning", "session", "plugin_error", message)
+            return stats
 
     def record(self, seconds: float | None = None,
                instruments: Sequence[str] | None = None) -> dict[str, dict[str, int]]:
         """Record, then stop; returns per-stream statistics (see :meth:`stop_recording`).
+
+        Instruments that were not acquiring before are started for the recording and stopped
+        after it (acquire → record → stop); a preview that was running goes on.
 
         Parameters
         ----------
@@ -454,32 +660,131 @@ class Session:
             with a ``source_ended`` warning event. :attr:`recorded_seconds` says how long it lasted.
         instruments
             Labels to record (default: all).
+
+        :meth:`request_stop` (from any thread) ends it early, without an exception.
         """
         if seconds is not None and not seconds >= 0:
             raise ValidationError([Problem("seconds", f"{seconds} s: must be >= 0 (0 = until the sources end)")])
         seconds = seconds or None
-        self.start_recording(instruments)
-        recorded = [self.instruments[label] for label in self._recording]
-        ended: set[str] = set()
-        try:
-            start = time.monotonic()
-            while seconds is None or (time.monotonic() - start) < seconds:
-                elapsed = time.monotonic() - start
-                self.events.progress("acquire", round(elapsed, 1), seconds, "recording")
-                time.sleep(0.1 if seconds is None else min(0.1, max(0.0, seconds - elapsed)))
-                self._report_ended(recorded, ended, time.monotonic() - start, seconds)
-                if self._recorder is not None and self._recorder.error is not None:
-                    break
-                if all(i.failed is not None for i in recorded):
-                    self.events.emit("error", "session", "all_failed", "every instrument failed; stopping")
-                    break
-                if not any(i.running for i in recorded):
-                    break  # every source has ended
-            done = time.monotonic() - start
-            self.events.progress("acquire", done, done if seconds is None else seconds, "recording")
-        finally:
-            stats = self.stop_recording()
+        with self.operation():
+            was_acquiring = set(self._acquiring)
+            self.start_recording(instruments)
+            recorder = self._recorder
+            recorded = [self.instruments[label] for label in self._recording]
+            try:
+                self._wait_sources(recorded, seconds, "acquire", recorder)
+            finally:
+                # Instruments started for this recording stop first, so it holds all they acquired.
+                self._halt({i.label for i in recorded} - was_acquiring)
+                stats = self.stop_recording() if self._recorder is recorder else self._last_stats()
         return stats
+
+    def preview(self, seconds: float | None = None, instruments: Sequence[str] | None = None) -> None:
+        """Acquire without recording (to align, focus, check a loop), then stop what it started.
+
+        ``seconds`` as in :meth:`record` (``None`` or 0: until the sources end or
+        :meth:`request_stop`); subscribers and controllers get every sample, the file nothing.
+        """
+        if seconds is not None and not seconds >= 0:
+            raise ValidationError([Problem("seconds", f"{seconds} s: must be >= 0 (0 = until the sources end)")])
+        with self.operation():
+            was_acquiring = set(self._acquiring)
+            self.start_acquisition(instruments)
+            labels = self._labels(instruments, "preview")
+            try:
+                self._wait_sources([self.instruments[label] for label in labels], seconds or None, "preview")
+            finally:
+                self._halt(set(labels) - was_acquiring)
+
+    def _wait_sources(self, sources: list[Instrument], seconds: float | None, what: str,
+                      recorder: Recorder | None = None) -> None:
+        """Wait ``seconds`` (``None``: until the sources end), a stop request, or a failure."""
+        ended: set[str] = set()
+        start = time.monotonic()
+        while seconds is None or (time.monotonic() - start) < seconds:
+            elapsed = time.monotonic() - start
+            self.events.progress(what, round(elapsed, 1), seconds, "recording" if recorder else "previewing")
+            if self._cancel.wait(0.1 if seconds is None else min(0.1, max(0.0, seconds - elapsed))):
+                self.events.emit("info", "session", "stopped_on_request",
+                                 f"{what} ended on request after {time.monotonic() - start:.1f} s")
+                break
+            self._report_ended(sources, ended, time.monotonic() - start, seconds)
+            if recorder is not None and (self._recorder is not recorder or recorder.error is not None):
+                break  # stopped from another thread, or the recorder failed
+            if all(i.failed is not None for i in sources):
+                self.events.emit("error", "session", "all_failed", "every instrument failed; stopping")
+                break
+            if not any(i.running for i in sources):
+                break  # every source has ended
+        done = time.monotonic() - start
+        self.events.progress(what, done, done if seconds is None else seconds, "recording" if recorder else "previewing")
+
+    def _last_stats(self) -> dict[str, dict[str, int]]:
+        """Statistics of the recording another thread stopped (see :meth:`stop_recording`)."""
+        recorder = self._last_recorder
+        return {f"{source}/{stream}": {"samples": recorder.written.get((source, stream), 0) if recorder else 0,
+                                       "dropped": st.dropped_samples}
+                for (source, stream), st in self.router.stats.items()}
+
+    # -- cancellation and observation ---------------------------------------------------------------
+    @contextlib.contextmanager
+    def operation(self) -> Iterator[None]:
+        """Mark long work (a recording, a recipe, an algorithm run) that :meth:`request_stop` ends.
+
+        Nested operations are one: a stop requested before the outermost one started is forgotten,
+        one requested during it ends every nested operation.
+        """
+        with self._lock:
+            if self._operations == 0:
+                self._cancel.clear()
+            self._operations += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._operations -= 1
+
+    def request_stop(self) -> None:
+        """Ask the running :meth:`record`, recipe step or algorithm run to end (from any thread).
+
+        Cooperative: the recording stops and is written, a running algorithm ends as ``cancelled``
+        at its next progress report, a recipe runs no further step. Returns at once.
+        """
+        self._cancel.set()
+        self.events.emit("info", "session", "stop_requested", "stop requested")
+
+    @property
+    def stop_requested(self) -> bool:
+        return self._cancel.is_set()
+
+    def snapshot(self) -> SessionSnapshot:
+        """An immutable summary of the live session; never calls a device or the file (≥ 50 Hz safe)."""
+        counts = self.router.counts()
+        recorder = self._recorder
+        recorded = set(self._recording) if recorder is not None else set()
+        now = time.monotonic()
+        instruments = {}
+        for label, inst in list(self.instruments.items()):
+            samples, dropped = counts.get(label, (0, 0))
+            deadline = inst.reconnect_deadline
+            instruments[label] = InstrumentSnapshot(
+                label, inst.name, inst.state, label in self._acquiring, label in recorded,
+                self.router.last_time.get(label), samples, dropped,
+                inst.reconnects - self._reconnects_at_start.get(label, 0),
+                None if deadline is None else max(0.0, deadline - now), inst.last_status,
+                "" if inst.failed is None else str(inst.failed))
+        controllers = {
+            label: ControllerSnapshot(label, r.controller.name, r.state, r.commands_sent, r.commands_failed,
+                                      r.latency_stats(), "" if r.error is None else str(r.error))
+            for label, r in list(self.controllers.items())}
+        last = recorder or self._last_recorder
+        queue = self.router.recorder_queue
+        rec = RecorderSnapshot(recorder is not None, queue.qsize(), queue.maxsize,
+                               last.bytes_written if last is not None else 0,
+                               "" if last is None or last.error is None else str(last.error))
+        return SessionSnapshot(self.clock.now(), str(self.path), bool(self._acquiring), recorder is not None,
+                               now - self._record_start if recorder is not None else self.recorded_seconds,
+                               MappingProxyType(instruments), MappingProxyType(controllers), rec)
 
     def _report_ended(self, recorded: list[Instrument], ended: set[str], elapsed: float,
                       seconds: float | None) -> None:
@@ -677,13 +982,18 @@ class Session:
         return schema.read_log(self.file)
 
     # -- closing ---------------------------------------------------------------------------------
-    def close(self, status: str | None = None) -> None:
-        """Stop recording if needed, close instruments and simulators, set ``status``, close the file.
+    def close(self, status: str | None = None, reason: str = "") -> None:
+        """Stop recording and acquisition, close instruments and simulators, set ``status``, close the file.
 
         ``status`` defaults to ``closed`` for a session created here and to its stored status for
-        an opened one (analysis never turns an aborted recording into a closed one). A new session
-        closed ``aborted`` before it held anything is deleted (see :meth:`create`).
+        an opened one (analysis never turns an aborted recording into a closed one). ``reason``
+        (e.g. ``"interrupted (Ctrl-C) during step 2"``) is logged with the closing event. A new
+        session closed ``aborted`` before it held anything is deleted (see :meth:`create`).
         """
+        with self._lock:
+            self._close(status, reason)
+
+    def _close(self, status: str | None, reason: str) -> None:
         if self._closed:
             return
         if status is None:
@@ -698,15 +1008,17 @@ class Session:
                 except Exception as exc:  # keep closing: instruments, simulators, status
                     errors.append(exc)
                     status = "aborted"
+            self.stop_acquisition()
+            self.router.close_all()
             for inst in self.instruments.values():
-                inst.stop()
                 inst.close()
             for label in list(self._simulators):
                 self._stop_simulator(label)
             if self.writable:
                 for message in self.registry.notify("mirrorlab_session_closing", session=self, status=status):
                     self.events.emit("warning", "session", "plugin_error", message)
-                self.events.emit("info", "session", "closed", f"session {status}")
+                self.events.emit("info", "session", "closed", f"session {status}" + (f": {reason}" if reason else ""),
+                                 **({"reason": reason} if reason else {}))
                 self._write_pending_log()
                 self.file.attrs["status"] = status
                 if status == "closed":

@@ -1,8 +1,8 @@
 """Recipe steps: what ``[[steps]]`` tables in a recipe do, in order.
 
 A step kind subclasses :class:`Step` and is registered through the
-``mirrorlab_register_steps`` hook (this module registers the built-ins ``acquire``, ``wait`` and
-``run``), so plugins add kinds such as ``calibrate`` or ``track`` without touching the core.
+``mirrorlab_register_steps`` hook (this module registers the built-ins ``acquire``, ``preview``,
+``wait`` and ``run``), so plugins add kinds such as ``calibrate`` or ``track`` without touching the core.
 Validation happens for every step before the session starts; :meth:`Step.execute` then runs it
 on the open session.
 """
@@ -79,6 +79,19 @@ class Acquire(Step):
         session.record(values["seconds"], _labels(values["instruments"]) or None)
 
 
+class Preview(Acquire):  # validated like acquire (seconds, instruments)
+    name = "preview"
+    description = "acquire without recording (align, focus, let a control loop settle)"
+    parameters = ParameterSet(
+        Parameter("seconds", float, unit="s", bounds=(0.0, 7 * 24 * 3600.0),
+                  help="how long to acquire; 0 = until every source has ended"),
+        Parameter("instruments", str, "", help="comma-separated labels to acquire (default: all)"),
+    )
+
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
+        session.preview(values["seconds"], _labels(values["instruments"]) or None)
+
+
 class Wait(Step):
     name = "wait"
     description = "pause between steps (e.g. to let a mechanism settle)"
@@ -86,7 +99,7 @@ class Wait(Step):
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         end = time.monotonic() + values["seconds"]
-        while (left := end - time.monotonic()) > 0:
+        while (left := end - time.monotonic()) > 0 and not session.stop_requested:
             session.events.progress("wait", values["seconds"] - left, values["seconds"], "waiting")
             time.sleep(min(0.1, left))
 
@@ -159,4 +172,4 @@ def _labels(text: str) -> list[str]:
 
 @hookimpl
 def mirrorlab_register_steps() -> list[type[Step]]:
-    return [Acquire, Wait, Run]
+    return [Acquire, Preview, Wait, Run]

@@ -6,9 +6,12 @@ HDF5 file's shape is fixed once SWMR writing begins. While recording, its acquis
 
 * puts each block on one **bounded** queue read by the single recorder thread (device threads
   never wait on disk; when the queue is full the block is dropped, counted and logged), and
-* hands it to every :class:`Subscription` on that stream (the TUI's live views, a closed control
-  loop between two instruments). Subscriptions are bounded ring buffers: a slow consumer loses its
-  oldest samples (counted), never slows the device.
+* hands it to every :class:`Subscription` on that stream (the TUI's live views, a controller
+  closing a loop between two instruments). Subscriptions are bounded by bytes: a slow consumer
+  loses its oldest blocks (counted), never slows the device.
+
+Instruments publish whenever they acquire (preview, alignment, a control loop); only the sources
+being recorded reach the recorder's queue.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import logging
 import queue
 import threading
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,6 +77,10 @@ class Block:
     times: np.ndarray
     values: np.ndarray
 
+    @property
+    def nbytes(self) -> int:
+        return int(self.times.nbytes + self.values.nbytes)
+
 
 class BlockQueue:
     """The bounded queue between device threads and the recorder.
@@ -112,26 +120,51 @@ class BlockQueue:
 
 
 class Subscription:
-    """A bounded live view of one stream, filled by the router and read by any thread or task.
+    """A bounded live view of one or more streams, filled by the router and read by any thread.
 
     ``latest`` is the most recent block; :meth:`drain` returns everything since the last call;
-    :meth:`get` waits (for a closed loop in another thread). When more than ``maxlen`` blocks are
-    waiting, the oldest are discarded and counted in ``dropped``.
+    :meth:`get` waits (for a closed loop in another thread). The blocks waiting are bounded by
+    their size: when they would hold more than ``max_bytes``, the oldest are discarded and counted
+    in ``dropped`` (blocks) — a slow reader loses old data, never memory or the device's pace.
+    Use it as a context manager, or :meth:`close` it, to stop receiving; the session closes the
+    ones it handed out when it closes.
     """
 
-    def __init__(self, instrument: str, stream: str, maxlen: int = 1024) -> None:
-        self.instrument = instrument
-        self.stream = stream
+    def __init__(self, keys: list[tuple[str, str]], max_bytes: int = 64 << 20,
+                 on_close: Any = None) -> None:
+        if max_bytes <= 0:
+            raise ValueError(f"max_bytes must be > 0, not {max_bytes}")
+        self.keys = list(keys)
+        self.max_bytes = max_bytes
         self.latest: Block | None = None
         self.dropped = 0
-        self._blocks: deque[Block] = deque(maxlen=maxlen)
+        self.closed = False
+        self._blocks: deque[Block] = deque()
+        self._bytes = 0
         self._cond = threading.Condition()
+        self._on_close = on_close
+
+    @property
+    def instrument(self) -> str:
+        return self.keys[0][0]
+
+    @property
+    def stream(self) -> str:
+        return self.keys[0][1]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the blocks waiting to be read."""
+        return self._bytes
 
     def _push(self, block: Block) -> None:
+        size = block.nbytes
         with self._cond:
-            if len(self._blocks) == self._blocks.maxlen:
-                self.dropped += 1
             self._blocks.append(block)
+            self._bytes += size
+            while self._bytes > self.max_bytes and len(self._blocks) > 1:
+                self._bytes -= self._blocks.popleft().nbytes
+                self.dropped += 1
             self.latest = block
             self._cond.notify_all()
 
@@ -140,19 +173,38 @@ class Subscription:
         with self._cond:
             out = list(self._blocks)
             self._blocks.clear()
+            self._bytes = 0
             return out
 
     def get(self, timeout: float | None = None) -> Block | None:
-        """The oldest waiting block, waiting up to ``timeout`` s; ``None`` on timeout."""
+        """The oldest waiting block, waiting up to ``timeout`` s; ``None`` on timeout or once closed."""
         with self._cond:
-            if not self._cond.wait_for(lambda: bool(self._blocks), timeout):
+            if not self._cond.wait_for(lambda: bool(self._blocks) or self.closed, timeout) or not self._blocks:
                 return None
-            return self._blocks.popleft()
+            block = self._blocks.popleft()
+            self._bytes -= block.nbytes
+            return block
+
+    def close(self) -> None:
+        """Stop receiving blocks and wake a waiting :meth:`get` (idempotent)."""
+        with self._cond:
+            if self.closed:
+                return
+            self.closed = True
+            self._cond.notify_all()
+        if self._on_close is not None:
+            self._on_close(self)
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 @dataclass
 class StreamStats:
-    """Per-stream counters kept by the router (reported in the session log and ``status``)."""
+    """Per-stream counters of the current recording (reset when a recording starts)."""
 
     samples: int = 0
     blocks: int = 0
@@ -170,39 +222,80 @@ class StreamRouter:
     on_overflow
         Called (from the device thread) as ``on_overflow(block, total_dropped)`` the first time and
         then every 100th time a stream overflows, so overflows are logged without flooding.
+
+    Only the blocks of the sources in :attr:`recorded` (instrument or controller labels) go to the
+    recorder queue; every block reaches the subscriptions and updates :attr:`last_time`.
     """
 
     def __init__(self, queue_blocks: int = 4096, on_overflow: Any = None) -> None:
         self.recorder_queue = BlockQueue(queue_blocks)
+        #: Counters of the current (or last) recording, per (source, stream).
         self.stats: dict[tuple[str, str], StreamStats] = {}
+        #: Session time of the newest sample published per source, s.
+        self.last_time: dict[str, float] = {}
+        self.recorded: frozenset[str] = frozenset()
         self._subs: dict[tuple[str, str], list[Subscription]] = {}
         self._lock = threading.Lock()
         self._on_overflow = on_overflow
-        self.recording = False
 
-    def subscribe(self, instrument: str, stream: str, maxlen: int = 1024) -> Subscription:
-        sub = Subscription(instrument, stream, maxlen)
+    def start_recording(self, sources: Iterable[str]) -> None:
+        """Queue the blocks of ``sources`` for the recorder from now on, with fresh counters."""
         with self._lock:
-            self._subs.setdefault((instrument, stream), []).append(sub)
+            self.stats = {}
+            self.recorded = frozenset(sources)
+
+    def stop_recording(self) -> None:
+        """Queue nothing more (the counters stay readable until the next recording)."""
+        self.recorded = frozenset()
+
+    def subscribe(self, keys: Iterable[tuple[str, str]], max_bytes: int = 64 << 20) -> Subscription:
+        """A :class:`Subscription` to the ``(source, stream)`` pairs ``keys``."""
+        sub = Subscription(list(keys), max_bytes, on_close=self.unsubscribe)
+        with self._lock:
+            for key in sub.keys:
+                self._subs.setdefault(key, []).append(sub)
         return sub
 
     def unsubscribe(self, sub: Subscription) -> None:
         with self._lock:
-            subs = self._subs.get((sub.instrument, sub.stream), [])
-            if sub in subs:
-                subs.remove(sub)
+            for key in sub.keys:
+                subs = self._subs.get(key, [])
+                if sub in subs:
+                    subs.remove(sub)
+        sub.close()
+
+    def close_all(self) -> None:
+        """Close every subscription (when the session closes)."""
+        with self._lock:
+            subs = {id(sub): sub for subs in self._subs.values() for sub in subs}
+            self._subs = {}
+        for sub in subs.values():
+            sub.close()
+
+    def counts(self) -> dict[str, tuple[int, int]]:
+        """Per source: (samples, dropped samples) of the current recording."""
+        out: dict[str, tuple[int, int]] = {}
+        with self._lock:
+            items = list(self.stats.items())
+        for (source, _), st in items:
+            samples, dropped = out.get(source, (0, 0))
+            out[source] = (samples + st.samples, dropped + st.dropped_samples)
+        return out
 
     def publish(self, instrument: str, stream: str, times: Any, values: Any) -> None:
         """Publish ``times`` (n,) s and ``values`` (n, *shape); never blocks."""
         block = Block(instrument, stream, np.atleast_1d(np.asarray(times, dtype="f8")), np.asarray(values))
         key = (instrument, stream)
-        with self._lock:
-            stats = self.stats.setdefault(key, StreamStats())
-            subs = list(self._subs.get(key, ()))
         n = len(block.times)
-        stats.blocks += 1
-        stats.samples += n
-        if self.recording:
+        if n:
+            self.last_time[instrument] = float(block.times[-1])
+        with self._lock:
+            subs = list(self._subs.get(key, ()))
+            recording = instrument in self.recorded
+            stats = self.stats.setdefault(key, StreamStats()) if recording else None
+        if stats is not None:
+            stats.blocks += 1
+            stats.samples += n
             try:
                 self.recorder_queue.put_nowait(block)
             except queue.Full:

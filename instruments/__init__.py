@@ -22,8 +22,9 @@ def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> Non
 @hookimpl
 def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
+    from .reference import Actuator, AngleSource
 
-    return [FilmScanner]
+    return [FilmScanner, AngleSource, Actuator]
 
 
 __all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

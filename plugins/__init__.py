@@ -17,7 +17,8 @@ from types import ModuleType
 from mirrorlab.core.hookspecs import hookimpl
 
 #: Sub-packages with a ``plugin`` module, in registration order.
-SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "retarget", "mechanisms")
+SUBPACKAGES = ("kinematics", "photogrammetry", "markers", "pairing", "tracking", "pipeline", "retarget", "mechanisms",
+               "control")
 
 #: CLI sub-commands of the sub-packages: name -> (one-line help, ``"module:function"`` adding the parser).
 #: ``mirrorlab --help`` lists them from here; the module is imported only when the command runs.
@@ -44,6 +45,10 @@ class Adapter:
     @hookimpl
     def mirrorlab_register_algorithms(self) -> list[type]:
         return list(getattr(self.module, "ALGORITHMS", ()))
+
+    @hookimpl
+    def mirrorlab_register_controllers(self) -> list[type]:
+        return list(getattr(self.module, "CONTROLLERS", ()))
 
     @hookimpl
     def mirrorlab_register_steps(self) -> list[type]:

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
+import threading
 from importlib import resources
 from pathlib import Path
 
@@ -49,10 +52,31 @@ def run(args: argparse.Namespace) -> int:
               f"{_plural(len(recipe.steps), 'step')})")
         return 0
     out = args.out or recipe.default_output(getattr(args, "default_root", None))
-    with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
-        run_recipe(recipe, out, on_session=lambda s: s.events.subscribe(on_event), overwrite=args.overwrite)
+
+    def on_session(session: Session) -> None:
+        session.events.subscribe(on_event)
+        stop_on_interrupt(session)
+
+    try:
+        with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+            run_recipe(recipe, out, on_session=on_session, overwrite=args.overwrite)
+    finally:
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.default_int_handler)
     print_summary(out)
     return 0
+
+
+def stop_on_interrupt(session: Session) -> None:
+    """First Ctrl-C: ask the session to stop cleanly (the step ends, the file closes, the reason is
+    logged); a second one interrupts at once (the file is closed as aborted)."""
+    def first(signum: int, frame: object) -> None:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        print("\nmirrorlab: stopping after the current step's work ends (Ctrl-C again to abort)", file=sys.stderr)
+        session.request_stop()
+
+    if threading.current_thread() is threading.main_thread():  # signals reach the main thread only
+        signal.signal(signal.SIGINT, first)
 
 
 def demo(args: argparse.Namespace) -> int:

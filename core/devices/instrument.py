@@ -13,12 +13,18 @@ build TUI forms and run the conformance kit::
         simulator = ThermometerModel          # a LineSimulator subclass
 
 Lifecycle: ``connect → identify → configure → streams → start(emit) … stop → close``; ``read``
-and ``status`` may be called any time after ``connect``. Every call is bounded by ``timeout``.
-While started, :meth:`acquire` runs in the instrument's own thread; when it raises
-:class:`DeviceDisconnected`, :class:`DeviceTimeout` or :class:`ProtocolError` the base class
-reports it, reconnects with exponential backoff (if the device allows) and resumes — other
-instruments of the session keep recording meanwhile. Any other :class:`MirrorlabError` (damaged
-data: :class:`DataError`; a device's ``ERR`` reply) stops that instrument, reported once.
+and ``status`` may be called any time after ``connect``; :meth:`set` changes one live parameter
+(a set-point) at any time. Every call is bounded by ``timeout``.
+
+While started, :meth:`acquire` runs in the instrument's own thread and the instrument's
+:attr:`~Instrument.state` says what it is doing (:data:`STATES`). Errors decide their own fate:
+
+* *transient* (:class:`DeviceDisconnected`, :class:`DeviceTimeout`, :class:`ProtocolError`): the
+  base class reports it, reconnects with exponential backoff within the reconnect budget
+  (:attr:`~Instrument.reconnect_budget`, s) and resumes — other instruments keep acquiring;
+* *permanent* (any other :class:`MirrorlabError`: damaged data :class:`DataError`, a setting that
+  cannot work :class:`ConfigurationError`, a device's ``ERR`` reply): the instrument stops,
+  reported once, and is ``failed``.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import (
+    ConfigurationError,
     DeviceDisconnected,
     DeviceError,
     DeviceTimeout,
@@ -46,6 +53,11 @@ from ..streams import StreamSpec
 from .protocol import LineClient, Reply
 from .simulator import LineSimulator
 from .transport import open_port
+
+#: Lifecycle states of an instrument (:attr:`Instrument.state`).
+STATES = ("idle", "connecting", "acquiring", "reconnecting", "failed", "stopped")
+#: Errors after which reconnecting may help.
+TRANSIENT = (DeviceDisconnected, DeviceTimeout, ProtocolError)
 
 #: Called by an instrument to report something: ``report(level, kind, message, **data)``.
 Reporter = Callable[..., None]
@@ -109,6 +121,10 @@ class Instrument(ABC):
     simulator: ClassVar[type[LineSimulator] | None] = None
     supports_reconnect: ClassVar[bool] = True
     max_backoff: ClassVar[float] = 5.0
+    #: Seconds the acquisition thread may take to end after :meth:`stop` (after ``ABORT``).
+    stop_timeout: ClassVar[float] = 1.0
+    #: Seconds between the acquisition thread's refreshes of :attr:`last_status`.
+    status_interval: ClassVar[float] = 1.0
 
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
                  timeout: float = 2.0, report: Reporter | None = None) -> None:
@@ -121,6 +137,14 @@ class Instrument(ABC):
         self.identity: Identity | None = None
         self.reconnects = 0
         self.failed: BaseException | None = None
+        #: Seconds of reconnect attempts allowed per connection loss; ``None``: no limit.
+        self.reconnect_budget: float | None = 60.0
+        #: :func:`time.monotonic` at which the running reconnect attempts give up (``None``: none running).
+        self.reconnect_deadline: float | None = None
+        #: The newest :class:`Status`, cached by the acquisition thread (never a device call to read).
+        self.last_status: Status | None = None
+        self.state = "idle"
+        self._status_due = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._set_lock = threading.Lock()  # one set-point at a time, whichever thread sends it
@@ -246,26 +270,53 @@ class Instrument(ABC):
         self.stop()
         self.close()
 
+    def set_state(self, state: str, message: str = "") -> None:
+        """Enter lifecycle ``state`` (one of :data:`STATES`) and report the change as a ``state`` event."""
+        if state not in STATES:
+            raise ValueError(f"state must be one of {STATES}, not {state!r}")
+        if state != self.state:
+            self.state = state
+            self.report("error" if state == "failed" else "info", "state",
+                        message or f"{self.device_name} is {state}", state=state)
+
     def start(self, emit: Emit) -> None:
         """Start :meth:`acquire` in the instrument's thread (reconnecting on connection loss)."""
         if self._thread is not None and self._thread.is_alive():
             raise DeviceError(f"{self.device_name} is already started; stop it first")
         self._stop.clear()
         self.failed = None
-        self._thread = threading.Thread(target=self._run, args=(emit,), name=f"acquire {self.label}",
-                                         daemon=True)
+        self._thread = threading.Thread(target=self._run, args=(_StatusCaching(emit, self),),
+                                        name=f"acquire {self.label}", daemon=True)
+        self.set_state("acquiring")
         self._thread.start()
 
     def stop(self, timeout: float | None = None) -> None:
-        """Ask the acquisition thread to stop and wait for it (idempotent)."""
+        """Stop acquiring: interrupt a running device command, wait for the thread (idempotent).
+
+        The thread must end within ``timeout`` (default :attr:`stop_timeout`) s; otherwise the
+        instrument is reported ``failed`` (its device did not obey the interrupt).
+        """
         self._stop.set()
         thread = self._thread
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout=timeout if timeout is not None else self.timeout + 5.0)
+        if thread is not None and thread is not threading.current_thread() and thread.is_alive():
+            try:
+                self.interrupt()
+            except (DeviceError, OSError) as exc:  # the device is gone anyway: the thread ends on its own
+                self.report("debug", "interrupt_failed", f"{self.device_name}: {exc}")
+            thread.join(timeout=self.stop_timeout if timeout is None else timeout)
             if thread.is_alive():
-                self.report("error", "stop_timeout",
-                            f"{self.device_name}: acquisition did not stop within the timeout")
+                self.failed = DeviceTimeout(f"{self.device_name}: acquisition did not stop within "
+                                            f"{self.stop_timeout:g} s of being told to")
+                self.report("error", "stop_timeout", f"{self.failed}; power-cycle the device before using it again")
+                self.set_state("failed")
+                return
         self._thread = None
+        if self.state in ("acquiring", "reconnecting"):
+            self.set_state("stopped")
+
+    def interrupt(self) -> None:
+        """Make a running device command end now (called by :meth:`stop`); default: nothing to interrupt."""
+        return None
 
     @property
     def running(self) -> bool:
@@ -278,45 +329,93 @@ class Instrument(ABC):
         self.identify()
         self.apply_settings(self.settings)
 
+    def refresh_status(self) -> Status | None:
+        """Ask the device for its :meth:`status` and cache it in :attr:`last_status` (``None`` if it fails)."""
+        try:
+            self.last_status = self.status()
+        except (MirrorlabError, OSError):
+            return None
+        return self.last_status
+
+    def _tick(self) -> None:
+        """After each emitted block, in the acquisition thread: refresh the cached status now and then."""
+        now = time.monotonic()
+        if now >= self._status_due and threading.current_thread() is self._thread:
+            self._status_due = now + self.status_interval
+            self.refresh_status()
+
     def _run(self, emit: Emit) -> None:
         while not self._stop.is_set():
             try:
                 self.acquire(emit, self._stop)
+                if not self._stop.is_set():
+                    self.set_state("stopped", f"{self.device_name}: the source has ended")
                 return
-            except (DeviceDisconnected, DeviceTimeout, ProtocolError) as exc:
+            except TRANSIENT as exc:
                 if self._stop.is_set():
                     return
                 self.report("warning", "connection_lost", f"{self.device_name}: {exc}")
                 if not self.supports_reconnect or not self._reconnect_with_backoff():
-                    self.failed = exc
-                    self.report("error", "failed", f"{self.device_name} stopped recording: {exc}")
+                    self._fail(exc, "stopped acquiring")
                     return
-            except MirrorlabError as exc:  # damaged data, a device error: retrying cannot help
-                self.failed = exc
-                self.report("error", "failed", f"{self.device_name} stopped recording: {exc}")
-                return
-            except Exception as exc:  # a driver bug: report it, keep the session alive
-                self.failed = exc
-                self.report("error", "failed", f"{self.device_name} acquisition failed: "
-                                               f"{type(exc).__name__}: {exc}")
+            except Exception as exc:  # permanent: damaged data, a device's ERR, a setting, a driver bug
+                if self._stop.is_set():  # e.g. the command aborted by stop()
+                    return
+                what = "stopped acquiring" if isinstance(exc, MirrorlabError) else \
+                    f"acquisition failed ({type(exc).__name__})"
+                self._fail(exc, what)
                 return
 
+    def _fail(self, exc: BaseException, what: str) -> None:
+        self.failed = exc
+        self.report("error", "failed", f"{self.device_name} {what}: {exc}")
+        self.set_state("failed")
+
     def _reconnect_with_backoff(self) -> bool:
+        """Reconnect within :attr:`reconnect_budget`; ``False`` if stopped, out of budget or permanent."""
+        self.set_state("reconnecting")
+        budget = self.reconnect_budget
+        self.reconnect_deadline = None if budget is None else time.monotonic() + budget
         delay = 0.05
-        while not self._stop.is_set():
-            if self._stop.wait(delay):
-                return False
-            try:
-                self.reconnect()
-            except (DeviceError, OSError) as exc:
-                self.report("info", "reconnect_retry", f"{self.device_name}: reconnect failed ({exc}); "
-                                                       f"retrying in {min(delay * 2, self.max_backoff):g} s")
-                delay = min(delay * 2, self.max_backoff)
-                continue
-            self.reconnects += 1
-            self.report("info", "reconnected", f"{self.device_name} reconnected", reconnects=self.reconnects)
-            return True
-        return False
+        try:
+            while not self._stop.is_set():
+                left = None if self.reconnect_deadline is None else self.reconnect_deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    self.report("error", "reconnect_budget", f"{self.device_name} did not come back within "
+                                f"{budget:g} s; check cable and power, then start acquiring again")
+                    return False
+                if self._stop.wait(delay if left is None else min(delay, left)):
+                    return False
+                try:
+                    self.reconnect()
+                except TRANSIENT + (OSError,) as exc:
+                    delay = min(delay * 2, self.max_backoff)
+                    self.report("info", "reconnect_retry", f"{self.device_name}: reconnect failed ({exc}); "
+                                                           f"retrying in {delay:g} s")
+                    continue
+                except MirrorlabError as exc:  # e.g. another kind of device on the port now
+                    self.report("error", "reconnect_refused", f"{self.device_name}: {exc}")
+                    return False
+                self.reconnects += 1
+                self.report("info", "reconnected", f"{self.device_name} reconnected", reconnects=self.reconnects)
+                self.set_state("acquiring")
+                return True
+            return False
+        finally:
+            self.reconnect_deadline = None
+
+
+class _StatusCaching:
+    """The ``emit`` an acquisition thread gets: publish, then let the instrument refresh its cached status."""
+
+    def __init__(self, emit: Emit, instrument: Instrument) -> None:
+        self._emit = emit
+        self._tick = instrument._tick
+        self.now: Callable[[], float] = getattr(emit, "now", time.monotonic)
+
+    def __call__(self, stream: str, times: Any, values: Any) -> None:
+        self._emit(stream, times, values)
+        self._tick()
 
 
 class SerialInstrument(Instrument):
@@ -361,6 +460,12 @@ class SerialInstrument(Instrument):
             self.close()
             raise
 
+    def interrupt(self) -> None:
+        """Send ``ABORT`` to the command the acquisition thread is waiting on, if any."""
+        client = self.client
+        if client is not None and client.busy:
+            client.abort()
+
     def query(self, command: str, timeout: float | None = None) -> Reply:
         """Send one command and return its reply (see :meth:`LineClient.query`)."""
         if self.client is None:
@@ -373,7 +478,7 @@ class SerialInstrument(Instrument):
             raise ProtocolError(f"{self.device_name}: *IDN? gave {' '.join(reply.fields)!r}, "
                                 "expected '<kind> <vendor> <model> <firmware> <serial>'")
         if reply.fields[0] != self.kind:
-            raise ProtocolError(f"{self.device_name}: the device is a {reply.fields[0]}, not a {self.kind}; "
+            raise ConfigurationError(f"{self.device_name}: the device is a {reply.fields[0]}, not a {self.kind}; "
                                 "check that the port is the right device")
         self.identity = Identity(*reply.fields)
         return self.identity

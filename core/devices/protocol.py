@@ -155,6 +155,11 @@ class LineClient:
             self._write(command.encode("ascii") + b"\n")
             return self._collect(command, timeout)
 
+    @property
+    def busy(self) -> bool:
+        """Whether a command is waiting for its reply."""
+        return self._lock.locked()
+
     def abort(self) -> None:
         """Abort the running command (its ``query`` raises ``E09 aborted``), or send ``ABORT``.
 

@@ -53,6 +53,9 @@ class LineSimulator:
     """
 
     kind = "GENERIC"
+    #: Seconds between the server's checks for due stream lines when no command arrives: a stream
+    #: line leaves at most this late (a fast stream wants a short tick).
+    stream_tick = 0.01
     vendor = "mirrorlab"
     model = "SIM"
     firmware = "1.0"
@@ -327,7 +330,7 @@ class SimulatorServer:
     def _serve_connection(self) -> None:
         last_tick = time.monotonic()
         while not self._stop.is_set():
-            line = self._next_line(timeout=0.01)
+            line = self._next_line(timeout=self.model.stream_tick)
             if line is None:
                 self.endpoint.disconnect()
                 return

@@ -12,6 +12,7 @@ from __future__ import annotations
 import threading
 import time
 from collections import defaultdict
+from collections.abc import Mapping
 
 import h5py
 import numpy as np
@@ -31,19 +32,24 @@ class Recorder:
     router
         Source of the blocks.
     events
-        Bus whose pending events go to ``/log``.
+        Bus whose pending events go to ``/log``; a failure is reported on it as ``recorder_failed``.
+    paths
+        ``(source, stream)`` -> the stream's group in the file (``instruments/cam/frames``).
     flush_interval
         Seconds between flushes (≤ 1 s keeps the crash guarantee).
     """
 
-    def __init__(self, file: h5py.File, router: StreamRouter, events: EventBus,
+    def __init__(self, file: h5py.File, router: StreamRouter, events: EventBus, paths: Mapping[tuple[str, str], str],
                  flush_interval: float = 0.5, batch_blocks: int = 4096) -> None:
         self.file = file
+        self.filename = file.filename  # for the failure message: the file may be unusable by then
+        self.paths = dict(paths)
         self.router = router
         self.events = events
         self.flush_interval = flush_interval
         self.batch_blocks = batch_blocks
         self.error: BaseException | None = None
+        self.bytes_written = 0
         self.written: dict[tuple[str, str], int] = defaultdict(int)
         # Per stream: (data, time, length). Looking datasets up and asking h5py for shapes costs
         # more than writing small blocks, so both are cached for the recording's lifetime.
@@ -79,6 +85,11 @@ class Recorder:
                     return
         except BaseException as exc:  # surfaced by stop(); the file keeps what was flushed
             self.error = exc
+            self.router.stop_recording()  # nothing more to queue: the blocks would only overflow
+            self.events.emit("error", "recorder", "recorder_failed",
+                             f"the recording stopped: writing {self.filename} failed ({exc}); "
+                             "free disk space or check the disk, then record into a new session file",
+                             error=f"{type(exc).__name__}: {exc}")
 
     def _write(self, batch: list[Block]) -> None:
         # Group blocks per stream so each dataset is resized once per batch.
@@ -88,7 +99,7 @@ class Recorder:
         for key, blocks in grouped.items():
             handle = self._handles.get(key)
             if handle is None:
-                g = self.file[f"instruments/{key[0]}/{key[1]}"]
+                g = self.file[self.paths[key]]
                 handle = self._handles[key] = [g["data"], g["time"], g["time"].shape[0], g["data"].shape[1:]]
             data, time_ds, n, shape = handle
             if len(blocks) == 1:  # the live case: write the block itself, no copy
@@ -104,6 +115,7 @@ class Recorder:
             time_ds[n:n + k] = times
             handle[2] = n + k
             self.written[key] += k
+            self.bytes_written += values.nbytes + times.nbytes
 
     def _write_log(self) -> None:
         events = self.events.take_pending()

@@ -79,6 +79,8 @@ class FilmScanner(SerialInstrument):
         super().__init__(label, port, settings, timeout, report)
         self._source: FrameSource | None = None
         self._homed = False
+        # Index of the next frame: a reconnect (or a new start) resumes there instead of at frame 0.
+        self._next_frame = 0
 
     @classmethod
     def needs_port(cls, settings: Mapping[str, Any]) -> bool:
@@ -111,6 +113,8 @@ class FilmScanner(SerialInstrument):
                                        self.settings["camera_index"], scene=self.settings["scene"],
                                        frame_rate=self.settings["frame_rate"],
                                        n_frames=self.settings["scene_frames"])
+            if self._next_frame:
+                self._source.seek(self._next_frame)
 
     def identify(self) -> Identity:
         if self.is_serial:
@@ -172,7 +176,6 @@ class FilmScanner(SerialInstrument):
     def _scan_frames(self, stop: threading.Event, now: Callable[[], float]) -> Iterator[Frame]:
         if not self._homed:
             self.prepare()
-        index = 0
         while not stop.is_set():
             try:
                 self.head()
@@ -185,8 +188,8 @@ class FilmScanner(SerialInstrument):
             frame = self.scan(self.settings["lines"], stop)[0]
             if frame.shape[0] < self.settings["lines"]:
                 return  # stopped inside a frame: a partial frame is not emitted
+            index, self._next_frame = self._next_frame, self._next_frame + 1
             yield t, index, frame
-            index += 1
 
     def _source_frames(self, stop: threading.Event, now: Callable[[], float], pace: bool = True,
                        wrap: bool | None = None) -> Iterator[Frame]:
@@ -202,6 +205,7 @@ class FilmScanner(SerialInstrument):
             if item is None:
                 return
             index, img = item
+            self._next_frame = index + 1
             yield now(), index, to_scan_frame(img, self.settings["lines"], self.settings["threshold"],
                                               self.settings["binarise"])
             if pace:

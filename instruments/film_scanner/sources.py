@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import DataError, DeviceDisconnected
+from mirrorlab.core.errors import ConfigurationError, DataError, DeviceDisconnected
 
 from .wire import PIXELS
 
@@ -32,16 +32,16 @@ def image_files(folder: Path) -> list[Path]:
 
     Raises
     ------
-    DeviceDisconnected
+    ConfigurationError
         The folder is missing or holds no PNG/TIFF/JPEG/BMP image.
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise DeviceDisconnected(f"frame folder {str(folder)!r} does not exist; check the `path` setting "
+        raise ConfigurationError(f"frame folder {str(folder)!r} does not exist; check the `path` setting "
                                  "(it must be a folder of PNG/TIFF/JPEG frames)")
     files = sorted((p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES), key=natural_key)
     if not files:
-        raise DeviceDisconnected(f"frame folder {str(folder)!r} holds no PNG/TIFF/JPEG images; check the "
+        raise ConfigurationError(f"frame folder {str(folder)!r} holds no PNG/TIFF/JPEG images; check the "
                                  f"`path` setting and the file suffixes ({', '.join(IMAGE_SUFFIXES)})")
     return files
 
@@ -123,6 +123,16 @@ class FrameSource(ABC):
     def rewind(self) -> None:
         """Start again from the first frame."""
 
+    def seek(self, index: int) -> None:
+        """Make ``index`` the next frame :meth:`read` returns (used to resume after a reconnect).
+
+        The default reads and discards frames; sources with random access override it.
+        """
+        self.rewind()
+        for _ in range(index):
+            if self.read() is None:
+                return
+
     @abstractmethod
     def close(self) -> None:
         """Release the source (idempotent)."""
@@ -155,6 +165,9 @@ class FolderSource(FrameSource):
 
     def rewind(self) -> None:
         self._next = 0
+
+    def seek(self, index: int) -> None:
+        self._next = min(index, len(self.files))
 
     def close(self) -> None:
         self.files = []
@@ -260,7 +273,7 @@ def open_source(source: str, path: str, camera_index: int, *, scene: str = "", f
     ``n_frames`` frames, 0 = endless).
     """
     if source in ("folder", "video") and not path:
-        raise DeviceDisconnected(f"source '{source}' needs the `path` setting (a "
+        raise ConfigurationError(f"source '{source}' needs the `path` setting (a "
                                  f"{'folder of images' if source == 'folder' else 'video file'})")
     frame_source: FrameSource
     if source == "folder":
@@ -271,7 +284,7 @@ def open_source(source: str, path: str, camera_index: int, *, scene: str = "", f
         frame_source = CameraSource(camera_index)
     elif source == "virtual":
         if not scene:
-            raise DeviceDisconnected("source 'virtual' needs the `scene` setting (rssr, four_bar, box, "
+            raise ConfigurationError("source 'virtual' needs the `scene` setting (rssr, four_bar, box, "
                                      "upper_limb or grid)")
         from mirrorlab.instruments.virtual_lab.source import VirtualSource  # the lab imports this package
         frame_source = VirtualSource(scene, frame_rate, n_frames)

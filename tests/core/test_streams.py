@@ -14,7 +14,7 @@ from mirrorlab.core.streams import BlockQueue, StreamRouter, StreamSpec
 def test_overflow_is_counted_and_reported_not_silent() -> None:
     reports: list[int] = []
     router = StreamRouter(queue_blocks=2, on_overflow=lambda block, dropped: reports.append(dropped))
-    router.recording = True
+    router.start_recording(["cam"])
     for k in range(252):
         router.publish("cam", "x", [k, k + 0.5], np.zeros(2))
     stats = router.stats[("cam", "x")]
@@ -25,7 +25,7 @@ def test_overflow_is_counted_and_reported_not_silent() -> None:
 
 def test_not_recording_means_no_queueing_but_live_views_still_fed() -> None:
     router = StreamRouter(queue_blocks=1)
-    sub = router.subscribe("cam", "x", maxlen=3)
+    sub = router.subscribe([("cam", "x")], max_bytes=3 * 16)  # 3 blocks of one f8 time and one f8 value
     for k in range(5):
         router.publish("cam", "x", [k], [k * 10.0])
     assert router.recorder_queue.empty()
@@ -35,7 +35,7 @@ def test_not_recording_means_no_queueing_but_live_views_still_fed() -> None:
 
 def test_subscription_get_waits_for_another_thread() -> None:
     router = StreamRouter()
-    sub = router.subscribe("tracker", "azimuth")
+    sub = router.subscribe([("tracker", "azimuth")])
     assert sub.get(timeout=0.01) is None
     threading.Timer(0.05, router.publish, args=("tracker", "azimuth", [1.0], [0.25])).start()
     block = sub.get(timeout=2.0)
@@ -45,7 +45,7 @@ def test_subscription_get_waits_for_another_thread() -> None:
 @given(st.lists(st.integers(1, 50), min_size=1, max_size=60), st.integers(1, 16))
 def test_block_queue_keeps_order_and_bound(sizes: list[int], limit: int) -> None:
     router = StreamRouter(queue_blocks=40)
-    router.recording = True
+    router.start_recording(["a"])
     for i, n in enumerate(sizes):
         router.publish("a", "s", np.full(n, float(i)), np.zeros(n))
     q: BlockQueue = router.recorder_queue

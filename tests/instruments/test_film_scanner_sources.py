@@ -11,7 +11,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
-from mirrorlab.core.errors import DeviceDisconnected
+from mirrorlab.core.errors import ConfigurationError, DeviceDisconnected
 from mirrorlab.instruments.film_scanner import FilmScanner
 from mirrorlab.instruments.film_scanner.sources import natural_key
 
@@ -88,11 +88,11 @@ def test_folder_loop_and_read(tmp_path: Path) -> None:
 
 
 def test_folder_errors_say_what_to_check(tmp_path: Path) -> None:
-    with pytest.raises(DeviceDisconnected, match="does not exist"):
+    with pytest.raises(ConfigurationError, match="does not exist"):
         FilmScanner("f", settings={"source": "folder", "path": str(tmp_path / "missing")}).connect()
-    with pytest.raises(DeviceDisconnected, match="holds no PNG"):
+    with pytest.raises(ConfigurationError, match="holds no PNG"):
         FilmScanner("f", settings={"source": "folder", "path": str(tmp_path)}).connect()
-    with pytest.raises(DeviceDisconnected, match="needs the `path`"):
+    with pytest.raises(ConfigurationError, match="needs the `path`"):
         FilmScanner("f", settings={"source": "folder"}).connect()
 
 
@@ -111,7 +111,7 @@ def test_video_source_reads_an_avi(tmp_path: Path) -> None:
     expected = [(100 + 100 * k) * 512 / 640 for k in range(5)]
     assert np.allclose([centre_col(f) for f in frames], expected, atol=2.0)
     dev.close()
-    with pytest.raises(DeviceDisconnected, match="does not exist"):
+    with pytest.raises(ConfigurationError, match="does not exist"):
         FilmScanner("v", settings={"source": "video", "path": str(tmp_path / "none.avi")}).connect()
 
 

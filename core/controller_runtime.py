@@ -1,0 +1,241 @@
+"""Running a controller: its thread, its context, its supervision and its latency statistics.
+
+The session creates one :class:`ControllerRunner` per controller. The runner subscribes to the
+controller's bound input streams, calls :meth:`Controller.on_block` for every block in its own
+thread, and hands the controller a :class:`ControllerContext` through which it commands its
+instruments. Every acknowledged set-point is published as a sample of the stream
+``<role>.<parameter>`` and its latency (acknowledgement time minus the time of the input sample
+that caused it, s) as a sample of ``latency``, so the session records what the loop did.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .controllers import Controller
+from .devices import Instrument
+from .errors import DeviceError, MirrorlabError
+from .streams import Emitter, StreamSpec, Subscription
+
+#: Lifecycle states of a controller.
+CONTROLLER_STATES = ("idle", "running", "failed", "stopped")
+#: Latencies kept for the statistics of :meth:`ControllerRunner.latency_stats`.
+LATENCY_WINDOW = 2048
+
+
+def setpoint_stream(role: str, parameter: str) -> str:
+    """Name of the stream that records the set-points of ``parameter`` sent to ``role``."""
+    return f"{role}.{parameter}"
+
+
+@dataclass(frozen=True)
+class LatencyStats:
+    """Latency from input sample to acknowledged set-point over the last commands, s."""
+
+    count: int
+    p50: float
+    p99: float
+    max: float
+
+
+class ControllerContext:
+    """What a controller's code gets: its instruments, its output streams and the session clock."""
+
+    def __init__(self, runner: ControllerRunner) -> None:
+        self._runner = runner
+
+    @property
+    def settings(self) -> Mapping[str, Any]:
+        return self._runner.controller.settings
+
+    def instrument(self, role: str) -> Instrument:
+        """The instrument bound to ``role`` (for reading its settings or cached status)."""
+        return self._runner.instruments[role]
+
+    def now(self) -> float:
+        """Session time, s."""
+        return self._runner.emitter.now()
+
+    def set(self, role: str, parameter: str, value: Any, sample_time: float | None = None) -> Any:
+        """Send a set-point to the instrument bound to ``role`` and record it.
+
+        Parameters
+        ----------
+        role
+            A commanded role of the controller (:attr:`Controller.commands`).
+        parameter
+            One of the live parameters the controller declared for that role.
+        value
+            New value in the parameter's unit.
+        sample_time
+            Session time (s) of the input sample this set-point answers; its latency to the
+            acknowledgement is recorded in ``latency``.
+
+        Returns the value the instrument applied. A device error is reported as a
+        ``setpoint_failed`` warning and re-raised; the controller may go on.
+        """
+        return self._runner.set(role, parameter, value, sample_time)
+
+    def emit(self, stream: str, times: Any, values: Any) -> None:
+        """Publish samples of a stream the controller declared in :meth:`Controller.streams`."""
+        self._runner.emitter(stream, times, values)
+
+
+class ControllerRunner:
+    """Runs one controller in a supervised thread (created by the session).
+
+    Parameters
+    ----------
+    controller
+        The controller instance.
+    inputs
+        Role -> ``(instrument label, stream)`` it subscribes to.
+    instruments
+        Role -> the commanded :class:`Instrument`.
+    emitter
+        Publishes the controller's streams under its label.
+    subscribe
+        ``subscribe(keys)`` -> :class:`Subscription` (the session's router).
+    report
+        ``report(level, kind, message, **data)`` into the session's events.
+    """
+
+    def __init__(self, controller: Controller, inputs: Mapping[str, tuple[str, str]],
+                 instruments: Mapping[str, Instrument], emitter: Emitter,
+                 subscribe: Callable[[list[tuple[str, str]]], Subscription],
+                 report: Callable[..., None]) -> None:
+        self.controller = controller
+        self.label = controller.label
+        self.inputs = dict(inputs)
+        self.instruments = dict(instruments)
+        self.emitter = emitter
+        self.report = report
+        self.state = "idle"
+        self.error: BaseException | None = None
+        self.commands_sent = 0
+        self.commands_failed = 0
+        self._roles = {key: role for role, key in self.inputs.items()}
+        self._subscribe = subscribe
+        self._subscription: Subscription | None = None
+        self._latencies: deque[float] = deque(maxlen=LATENCY_WINDOW)
+        self._latency_lock = threading.Lock()  # appended by the loop, read by snapshot()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    # -- declarations ---------------------------------------------------------------------------
+    def streams(self) -> list[StreamSpec]:
+        """Set-point streams, ``latency`` and the controller's own streams."""
+        specs = [StreamSpec("latency", "f8", (), "s", None,
+                            "input sample to acknowledged set-point, s (one sample per command)")]
+        for role, names in self.controller.commanded().items():
+            inst = self.instruments[role]
+            for name in names:
+                p = inst.parameters[name]
+                specs.append(StreamSpec(setpoint_stream(role, name), "f8", tuple(getattr(p, "shape", ()) or ()),
+                                        p.unit, None, f"set-points sent to {inst.label}.{name}"))
+        return specs + list(self.controller.streams())
+
+    # -- lifecycle ------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Subscribe to the inputs and start the thread."""
+        self._stop.clear()
+        self.error = None
+        self._subscription = self._subscribe(list(self.inputs.values()))
+        self._thread = threading.Thread(target=self._run, name=f"controller {self.label}", daemon=True)
+        self._set_state("running")
+        self._thread.start()
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop the thread (after its current block) and release the subscription (idempotent)."""
+        self._stop.set()
+        if self._subscription is not None:
+            self._subscription.close()  # wakes a waiting get()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout)
+            if thread.is_alive():
+                self.report("error", "stop_timeout", f"controller {self.label!r} did not stop within {timeout:g} s "
+                            "(its on_block does not return); the session goes on without it")
+        self._thread = None
+        if self.state == "running":
+            self._set_state("stopped")
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _set_state(self, state: str) -> None:
+        self.state = state
+        self.report("error" if state == "failed" else "info", "state",
+                    f"controller {self.label!r} is {state}", state=state)
+
+    def _run(self) -> None:
+        ctx = ControllerContext(self)
+        sub = self._subscription
+        assert sub is not None
+        try:
+            self.controller.setup(ctx)
+            while not self._stop.is_set():
+                block = sub.get(timeout=0.5)
+                if block is None:
+                    continue
+                blocks = [block, *sub.drain()] if self.controller.latest_only else [block]
+                if self.controller.latest_only:  # the newest block of each input, in arrival order
+                    blocks = list({(b.instrument, b.stream): b for b in blocks}.values())
+                for b in blocks:
+                    self.controller.on_block(self._roles[(b.instrument, b.stream)], b, ctx)
+            self.controller.teardown(ctx)
+        except Exception as exc:  # supervised: report, hold the instruments, end the thread
+            self._fail(exc)
+
+    def _fail(self, exc: BaseException) -> None:
+        self.error = exc
+        kind = "" if isinstance(exc, MirrorlabError) else f"{type(exc).__name__}: "
+        self.report("error", "controller_failed", f"controller {self.label!r} failed: {kind}{exc}; "
+                    f"told {', '.join(i.label for i in self.instruments.values()) or 'nothing'} to hold")
+        for inst in self.instruments.values():
+            try:
+                inst.hold()
+            except (MirrorlabError, OSError) as hold_error:
+                self.report("error", "hold_failed", f"{inst.device_name} could not be told to hold: {hold_error}")
+        self._set_state("failed")
+
+    # -- commands -------------------------------------------------------------------------------
+    def set(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
+        declared = self.controller.commanded().get(role, ())
+        if parameter not in declared:
+            known = [f"{r}.{n}" for r, names in self.controller.commanded().items() for n in names]
+            raise MirrorlabError(f"controller {self.label!r} did not declare {role}.{parameter} in `commands` "
+                                 f"(declared: {', '.join(known) or 'none'})")
+        inst = self.instruments[role]
+        try:
+            applied = inst.set(parameter, value)
+        except DeviceError as exc:
+            self.commands_failed += 1
+            self.report("warning", "setpoint_failed", f"controller {self.label!r}: {inst.device_name} "
+                        f"did not take {parameter} = {value}: {exc}")
+            raise
+        ack = self.emitter.now()
+        self.commands_sent += 1
+        self.emitter(setpoint_stream(role, parameter), [ack], np.asarray(applied, dtype="f8")[None])
+        if sample_time is not None:
+            latency = ack - sample_time
+            with self._latency_lock:
+                self._latencies.append(latency)
+            self.emitter("latency", [ack], [latency])
+        return applied
+
+    def latency_stats(self) -> LatencyStats | None:
+        """p50 / p99 / max of the recent latencies (``None`` before the first command)."""
+        with self._latency_lock:
+            values = np.array(self._latencies)
+        if values.size == 0:
+            return None
+        p50, p99 = np.percentile(values, [50, 99])
+        return LatencyStats(int(values.size), float(p50), float(p99), float(values.max()))

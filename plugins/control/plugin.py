@@ -1,0 +1,5 @@
+"""Registers the built-in controllers."""
+
+from .controllers import Follow
+
+CONTROLLERS = [Follow]
