@@ -118,6 +118,7 @@ class Session:
         self._recording: list[str] = []
         self._recorded_controllers: list[str] = []
         self._reconnects_at_start: dict[str, int] = {}
+        self._recorded_streams: list[tuple[str, str]] = []
         self._closed = False
         self._created = False
         self._draft: Path | None = None  # the file as created, until _commit (see create)
@@ -537,17 +538,14 @@ class Session:
                                  instruments=started)
 
     def stop_acquisition(self, instruments: Sequence[str] | None = None) -> None:
-        """Stop acquiring (all instruments, or ``instruments``); stops a recording of them first.
-
-        Controllers bound to a stopped instrument stop before it.
-        """
+        """Stop acquiring (all instruments, or ``instruments``); controllers bound to a stopped
+        instrument stop before it. A recording ends once none of its instruments acquires, after
+        the stopped ones have delivered their last samples."""
         with self._lock:
             labels = set(self._acquiring if instruments is None else instruments) & self._acquiring
-            if not labels:
-                return
-            if self._recorder is not None and labels & set(self._recording):
-                self.stop_recording()
             self._halt(labels)
+            if self._recorder is not None and not set(self._recording) & self._acquiring:
+                self.stop_recording()
 
     def _halt(self, labels: set[str]) -> None:
         """Stop the controllers bound to ``labels``, then those instruments (recording untouched)."""
@@ -593,6 +591,7 @@ class Session:
             self.file.swmr_mode = True  # from here on no object or attribute may be created
             files.write_lock(self.path)  # tells `session check/close` a live writer has the file
             self._recorder = Recorder(self.file, self.router, self.events, paths)
+            self._recorded_streams = list(paths)
             self._recorder.start()
             self._recording = labels
             self._recorded_controllers = [r.label for r in runners]
@@ -622,9 +621,7 @@ class Session:
                 self.file.close()
                 self.file = h5py.File(self.path, "a", libver=LIBVER)
                 files.remove_lock(self.path)
-            stats = {f"{source}/{stream}": {"samples": recorder.written.get((source, stream), 0),
-                                            "dropped": st.dropped_samples}
-                     for (source, stream), st in self.router.stats.items()}
+            stats = self._last_stats()
             for group, sources in (("instruments", self._recording), ("controllers", self._recorded_controllers)):
                 for source in sources:
                     g = self.file[group][source]
@@ -720,11 +717,12 @@ class Session:
         self.events.progress(what, done, done if seconds is None else seconds, "recording" if recorder else "previewing")
 
     def _last_stats(self) -> dict[str, dict[str, int]]:
-        """Statistics of the recording another thread stopped (see :meth:`stop_recording`)."""
-        recorder = self._last_recorder
+        """Statistics of the last recording, every recorded stream (see :meth:`stop_recording`)."""
+        recorder, counted = self._last_recorder, self.router.stats
         return {f"{source}/{stream}": {"samples": recorder.written.get((source, stream), 0) if recorder else 0,
-                                       "dropped": st.dropped_samples}
-                for (source, stream), st in self.router.stats.items()}
+                                       "dropped": counted[(source, stream)].dropped_samples
+                                       if (source, stream) in counted else 0}
+                for source, stream in self._recorded_streams}
 
     # -- cancellation and observation ---------------------------------------------------------------
     @contextlib.contextmanager

@@ -86,6 +86,8 @@ class LineClient:
         self.timeout = timeout
         self.on_unsolicited = on_unsolicited
         self.garbage_lines = 0
+        #: The command waiting for its reply (``None`` when idle).
+        self.pending: str | None = None
         self._abort_sent = False
         self._desynced = False
         self._lines: queue.Queue[str | _Hangup] = queue.Queue()
@@ -152,8 +154,12 @@ class LineClient:
             self._drain_stale()
             if self._desynced:
                 self._resynchronise(timeout)
-            self._write(command.encode("ascii") + b"\n")
-            return self._collect(command, timeout)
+            self.pending = command
+            try:
+                self._write(command.encode("ascii") + b"\n")
+                return self._collect(command, timeout)
+            finally:
+                self.pending = None
 
     @property
     def busy(self) -> bool:
