@@ -925,11 +925,13 @@ class Session:
         return ResultData(ref, {k: g[k][()] for k in g}, attrs)
 
     # -- reading ---------------------------------------------------------------------------------
-    def stream(self, instrument: str, stream: str) -> StreamData:
-        """A recorded stream (times in session seconds); usable as ``times, data = ...``."""
-        key = f"instruments/{instrument}/{stream}"
-        if key not in self.file:
-            raise SessionError(f"no stream {instrument}/{stream} in {self.path}; "
+    def stream(self, source: str, stream: str) -> StreamData:
+        """A recorded stream of an instrument or a controller (times in session seconds); usable as
+        ``times, data = ...``."""
+        key = next((k for k in (f"instruments/{source}/{stream}", f"controllers/{source}/{stream}") if k in self.file),
+                   None)
+        if key is None:
+            raise SessionError(f"no stream {source}/{stream} in {self.path}; "
                                "`mirrorlab session info FILE` lists the streams")
         g = self.file[key]
         for ds in (g["data"], g["time"]):
@@ -940,23 +942,28 @@ class Session:
         return StreamData(g["time"][:n], g["data"][:n], schema.attr_str(g, "unit"), attrs)
 
     def describe(self) -> dict[str, Any]:
-        """JSON-ready summary: attributes, instruments with their streams, results, log size."""
-        instruments = {}
-        for label, g in files.members(self.file, "instruments"):
-            streams = {}
-            for name, sg in files.members(g):
-                if isinstance(sg, h5py.Group) and "data" in sg:
-                    streams[name] = {"samples": int(min(sg["data"].shape[0], sg["time"].shape[0])),
-                                     "shape": list(sg["data"].shape[1:]), "dtype": str(sg["data"].dtype),
-                                     "unit": schema.attr_str(sg, "unit")}
-            instruments[label] = {"plugin": schema.attr_str(g, "plugin"), "version": schema.attr_str(g, "version"),
-                                  "settings": schema.get_json(g, "settings", {}),
-                                  "identity": schema.get_json(g, "identity", {}), "streams": streams}
+        """JSON-ready summary: attributes, instruments and controllers with their streams, results, log size."""
+        instruments = {label: {"plugin": schema.attr_str(g, "plugin"), "version": schema.attr_str(g, "version"),
+                               "settings": schema.get_json(g, "settings", {}),
+                               "identity": schema.get_json(g, "identity", {}), "streams": self._streams(g)}
+                       for label, g in files.members(self.file, "instruments")}
+        controllers = {label: {"plugin": schema.attr_str(g, "plugin"), "version": schema.attr_str(g, "version"),
+                               "settings": schema.get_json(g, "settings", {}),
+                               "inputs": schema.get_json(g, "inputs", {}),
+                               "instruments": schema.get_json(g, "instruments", {}), "streams": self._streams(g)}
+                       for label, g in files.members(self.file, "controllers")}
         return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed,
                 "writer": files.live_writer(self.path) if self.crashed else None,
-                "instruments": instruments, "groups": self._other_groups(),
+                "instruments": instruments, "controllers": controllers, "groups": self._other_groups(),
                 "results": [{"path": r.path, "status": r.status, "error": r.error} for r in self.results()],
                 "log_events": int(self.file["log"].shape[0]) if "log" in self.file else 0}
+
+    @staticmethod
+    def _streams(g: h5py.Group) -> dict[str, dict[str, Any]]:
+        return {name: {"samples": int(min(sg["data"].shape[0], sg["time"].shape[0])),
+                       "shape": list(sg["data"].shape[1:]), "dtype": str(sg["data"].dtype),
+                       "unit": schema.attr_str(sg, "unit")}
+                for name, sg in files.members(g) if isinstance(sg, h5py.Group) and "data" in sg}
 
     def _other_groups(self) -> dict[str, dict[str, Any]]:
         """What sits outside config, instruments, results and log (/calibration, /truth, /report,
@@ -964,7 +971,7 @@ class Session:
         numbers of datasets and groups and their ``description``."""
         summary = {}
         for name, top in files.members(self.file):
-            if name in ("config", "instruments", "results") or not isinstance(top, h5py.Group):
+            if name in ("config", "instruments", "controllers", "results") or not isinstance(top, h5py.Group):
                 continue
             children = files.members(top)
             holds_data = any(isinstance(obj, h5py.Dataset) for _, obj in children)

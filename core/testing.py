@@ -170,7 +170,7 @@ class InstrumentConformance:
     def _start(self, inst: SerialInstrument) -> tuple[StreamRouter, SessionClock, dict[str, Subscription], _Reports]:
         router, clock = StreamRouter(), SessionClock()
         specs = {s.name: s for s in inst.streams()}
-        subs = {name: router.subscribe("dut", name, maxlen=100_000) for name in specs}
+        subs = {name: router.subscribe([("dut", name)], max_bytes=1 << 30) for name in specs}
         reports = _Reports()
         inst.report = reports
         inst.start(Emitter("dut", router, clock, specs))

@@ -88,7 +88,7 @@ def print_summary(path: Path) -> None:
     with Session.open(path) as s:
         info = s.describe()
     print(f"session {info['attributes']['session_id']} [{info['attributes']['status']}] -> {path}")
-    for label, inst in info["instruments"].items():
+    for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
         for name, st in inst["streams"].items():
             shape = "x".join(map(str, st["shape"])) or "scalar"
             print(f"  {label}/{name}: {st['samples']} samples of {shape} {st['dtype']} {st['unit']}")

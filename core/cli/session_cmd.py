@@ -8,6 +8,7 @@ import itertools
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -70,11 +71,12 @@ def info(args: argparse.Namespace) -> int:
         ident = inst["identity"]
         print(f"  instrument {label}: {inst['plugin']} {inst['version']}"
               + (f" — {ident.get('kind')} {ident.get('model')} fw {ident.get('firmware')}" if ident else ""))
-        for name, st in inst["streams"].items():
-            sample = "×".join(map(str, st["shape"])) + " " if st["shape"] else ""
-            unit = f" [{st['unit']}]" if st["unit"] else ""
-            n = st["samples"]
-            print(f"    {name}: {n} sample{'' if n == 1 else 's'} of {sample}{st['dtype']}{unit}")
+        _print_streams(inst["streams"])
+    for label, c in data.get("controllers", {}).items():
+        bound = ", ".join([f"{role} <- {ref}" for role, ref in c["inputs"].items()]
+                          + [f"{role} -> {ref}" for role, ref in c["instruments"].items()])
+        print(f"  controller {label}: {c['plugin']} {c['version']} ({bound})")
+        _print_streams(c["streams"])
     for path, g in data["groups"].items():
         counts = [f"{g[k]} {k if g[k] != 1 else k[:-1]}" for k in ("datasets", "groups") if g[k]]
         print(f"  {path}: {', '.join(counts) or 'empty'}" + (f" ({g['description']})" if g["description"] else ""))
@@ -82,6 +84,14 @@ def info(args: argparse.Namespace) -> int:
         print(f"  result {r['path']}: {r['status']}" + (f" — {r['error']}" if r["error"] else ""))
     print(f"  log: {data['log_events']} events")
     return 0
+
+
+def _print_streams(streams: dict[str, dict[str, Any]]) -> None:
+    for name, st in streams.items():
+        sample = "×".join(map(str, st["shape"])) + " " if st["shape"] else ""
+        unit = f" [{st['unit']}]" if st["unit"] else ""
+        n = st["samples"]
+        print(f"    {name}: {n} sample{'' if n == 1 else 's'} of {sample}{st['dtype']}{unit}")
 
 
 def tree(args: argparse.Namespace) -> int:
