@@ -16,7 +16,9 @@ Checks: connect/close idempotent; identity and metadata complete; settings round
 ``status``; declared streams are emitted with session timestamps; a stalled device raises
 :class:`DeviceTimeout`; garbage raises :class:`ProtocolError` and is counted; a disconnect is
 reported as :class:`DeviceDisconnected` and ``reconnect()`` recovers; acquisition survives
-``disconnects`` unplug/replug cycles, each reconnecting at the first attempt.
+``disconnects`` unplug/replug cycles, each reconnecting at the first attempt; ``stop()`` ends
+acquisition within the instrument's ``stop_timeout`` with its state ``stopped``; every live
+parameter is accepted by ``set()`` (acknowledged by the device) without re-sending the others.
 
 The streaming checks wait on what the instrument does (a block emitted, a reconnect reported, its
 thread ending), never on elapsed time, so a busy machine only makes them slower. ``event_timeout``
@@ -37,7 +39,7 @@ import pytest
 
 from .clock import SessionClock
 from .devices import Instrument, SerialInstrument, SimulatorServer
-from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError
+from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError, ValidationError
 from .streams import Block, Emitter, StreamRouter, Subscription
 
 
@@ -212,6 +214,28 @@ class InstrumentConformance:
             values = np.concatenate([b.values.reshape(-1, *spec.shape) for b in blocks])
             assert values.shape[1:] == tuple(spec.shape)
             assert len(values) == len(times)
+
+    def test_stop_ends_acquisition_promptly(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
+        inst, _ = sim
+        inst.configure()
+        _, _, subs, reports = self._start(inst)
+        self._next_block(inst, next(iter(subs.values())), reports, "after start")
+        inst.stop()
+        assert not inst.running and inst.state == "stopped" and inst.failed is None, reports.messages
+        assert "stop_timeout" not in reports.kinds, reports.messages
+
+    def test_live_parameters_are_set_one_at_a_time(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
+        inst, _ = sim
+        inst.configure()
+        for p in inst.parameters:
+            if p.live:
+                before = {k: v for k, v in inst.settings.items() if k != p.name}
+                assert inst.set(p.name, inst.settings[p.name]) == inst.settings[p.name]
+                assert {k: v for k, v in inst.settings.items() if k != p.name} == before
+        fixed = [p.name for p in inst.parameters if not p.live]
+        if fixed:
+            with pytest.raises(ValidationError, match="not live-settable"):
+                inst.set(fixed[0], inst.settings[fixed[0]])
 
     def test_acquisition_survives_disconnect(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, server = sim
