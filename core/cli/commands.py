@@ -41,6 +41,7 @@ CORE_COMMANDS = (
     Command("demo", "run the bundled demonstration recipe on simulated instruments", f"{__package__}.run_cmd:add"),
     Command("analyze", "run a registered algorithm on datasets of a session", f"{__package__}.analyze_cmd:add"),
     Command("record", "record one instrument (real or simulated) into a new session", f"{__package__}.analyze_cmd:add"),
+    Command("simulate", "serve an instrument's simulator on a pty or TCP port", f"{__package__}.simulate_cmd:add"),
 )
 
 

@@ -229,18 +229,22 @@ class SimulatorServer:
             driver = MyInstrument("dev", port=server.url)
 
     ``server.endpoint.faults`` injects transport faults; :meth:`disconnect` simulates unplugging.
+    A pty is linked at ``link`` (default: ``<link_dir>/tty<KIND>``, in a temporary folder unless
+    ``link_dir`` is given); TCP listens on 127.0.0.1 ``port`` (0: any free port).
     """
 
-    def __init__(self, model: LineSimulator, transport: str = "pty", link_dir: Path | None = None) -> None:
+    def __init__(self, model: LineSimulator, transport: str = "pty", link_dir: Path | None = None, *,
+                 link: Path | None = None, port: int = 0) -> None:
         self.model = model
         self._tmpdir = None
         if transport == "pty":
-            if link_dir is None:
+            if link is None and link_dir is None:
                 self._tmpdir = tempfile.TemporaryDirectory(prefix="mirrorlab-sim-")
                 link_dir = Path(self._tmpdir.name)
-            self.endpoint: Endpoint = PtyEndpoint(Path(link_dir) / f"tty{model.kind}", seed=model.seed)
+            where = Path(link) if link is not None else Path(str(link_dir)) / f"tty{model.kind}"
+            self.endpoint: Endpoint = PtyEndpoint(where, seed=model.seed)
         elif transport == "tcp":
-            self.endpoint = TcpEndpoint(seed=model.seed)
+            self.endpoint = TcpEndpoint(port=port, seed=model.seed)
         else:
             raise ValueError(f"transport must be 'pty' or 'tcp', not {transport!r}")
         self._stop = threading.Event()

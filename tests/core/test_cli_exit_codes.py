@@ -85,6 +85,10 @@ CASES = [
     ("record", ["record", "film_scanner", "--lines", "many", "--out", f"{D}/rec2.h5"], 2),
     ("record", ["record", "film_scanner", "--port", f"{D}/no-such-port", "--out", f"{D}/rec3.h5",
                 "--no-progress"], 1),
+    ("simulate", ["simulate", "actuator", "--tcp", "0", "--for", "0.2"], 0),
+    ("simulate", ["simulate", "no_such_instrument"], 2),
+    ("simulate", ["simulate", "film_scanner", "--set", "source=folder"], 2),
+    ("simulate", ["simulate", "actuator", "--pty", f"{D}/no-such-folder/tty"], 2),
     ("calibrate", ["calibrate", "--points", f"{D}/grid.csv", "--camera-center", ",".join(map(str, F1)), "--json"], 0),
     ("calibrate", ["calibrate", "--images", f"{D}/no-such-folder", "--pattern", "10x7", "--square", "25", "--json"], 2),
     ("calibrate", ["calibrate", "--images", f"{D}/blank", "--pattern", "10x7", "--json"], 2),  # --square missing
