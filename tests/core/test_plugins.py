@@ -36,7 +36,8 @@ def test_plugins_json_lists_builtins_and_thirdparty(acme_site: Path) -> None:
     assert {"film_scanner", "acme_thermometer"} <= set(names)
     rate = names["acme_thermometer"]["parameters"][0]
     assert rate == {"name": "rate", "type": "float", "default": 10.0, "unit": "Hz", "bounds": [1.0, 1000.0],
-                    "choices": None, "help": "samples per second", "required": False, "live": False}
+                    "choices": None, "help": "samples per second", "required": False, "live": False,
+                    "shape": None}
     assert "acme_drift_rate" in {a["name"] for a in data["algorithms"]}
 
 
