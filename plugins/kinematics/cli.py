@@ -30,9 +30,7 @@ from mirrorlab.core.errors import Problem, ValidationError
 from mirrorlab.core.events import EventBus
 from mirrorlab.core.params import ParameterSet
 
-from .errors import KinematicsError, KinematicsIOError
-from .io import MarkerData
-from .plugin import (
+from .algorithms import (
     UPPER_LIMB_OUTPUTS,
     AngularMomentum,
     Derivatives,
@@ -40,6 +38,8 @@ from .plugin import (
     RigidBodyMotionAlgorithm,
     UpperLimbAnglesAlgorithm,
 )
+from .errors import KinematicsError, KinematicsIOError
+from .io import MarkerData
 from .store import (
     export_markers,
     import_markers,

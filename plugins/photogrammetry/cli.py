@@ -34,7 +34,7 @@ __all__ = ["add"]
 
 
 def _algorithms() -> dict[str, type[Algorithm]]:
-    from .plugin import CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror, ReconstructParallel
+    from .algorithms import CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror, ReconstructParallel
 
     return {"calibrate_plane": CalibratePlane, "calibrate_pinhole": CalibratePinhole,
             "parallel": ReconstructParallel, "central": ReconstructCentral, "mirror": ReconstructMirror}
@@ -167,8 +167,8 @@ def calibrate(args: argparse.Namespace) -> int:
     extra: dict[str, Any] = {}
     attrs: dict[str, Any] = {}
     if args.images:
+        from .calibration_io import chessboard_inputs, parse_pattern
         from .errors import InvalidArgument
-        from .plugin import chessboard_inputs, parse_pattern
 
         algorithm = algs["calibrate_pinhole"]
         if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
@@ -208,7 +208,7 @@ def calibrate(args: argparse.Namespace) -> int:
         attrs = {"points_csv": str(args.points)}
     with _session(args.session, True, "mirrorlab calibrate", args.overwrite) as s:
         if s is not None:
-            from .plugin import require_new_camera, store_calibration
+            from .calibration_io import require_new_camera, store_calibration
 
             require_new_camera(s, args.camera)
             ref = s.run(algorithm, inputs, params)
@@ -259,7 +259,7 @@ def _camera_inputs(args: argparse.Namespace, session: Session | None, algorithm:
     if args.calibration:
         if session is None:
             raise ValidationError([Problem("--calibration", "a calibration group needs SESSION; or use --camera-file")])
-        from .plugin import calibration_inputs
+        from .calibration_io import calibration_inputs
 
         return dict(calibration_inputs(session, args.calibration, algorithm))
     if args.camera_file:

@@ -1,17 +1,17 @@
-"""Registration of the retarget adapters (algorithm, recipe step, CLI); nothing else lives here."""
+"""Registration of the retarget adapters: the ``retarget`` algorithm and step (:mod:`.algorithms`); nothing else lives here."""
 
 from __future__ import annotations
 
-import argparse
+from mirrorlab.core import hookimpl
 
 from .algorithms import Retarget, RetargetStep
 
-ALGORITHMS = [Retarget]
-STEPS = [RetargetStep]
+
+@hookimpl
+def mirrorlab_register_algorithms() -> list[type]:
+    return [Retarget]
 
 
-def add_cli_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``mirrorlab retarget ...`` (see :mod:`.cli`)."""
-    from .cli import add
-
-    add(subparsers)
+@hookimpl
+def mirrorlab_register_steps() -> list[type]:
+    return [RetargetStep]

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from mirrorlab.core.algorithms import execute
 from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.plugins.pairing import mirror_epipole
-from mirrorlab.plugins.pairing.plugin import PairMirror
+from mirrorlab.plugins.pairing.algorithms import PairMirror
 from mirrorlab.plugins.photogrammetry import fit_plane_calibration
 from mirrorlab.plugins.photogrammetry.camera_arrays import plane_arrays
 from mirrorlab.plugins.pipeline import (
@@ -25,7 +25,7 @@ from mirrorlab.plugins.pipeline import (
     mirror_tracks,
     split_views,
 )
-from mirrorlab.plugins.pipeline.plugin import LabSurvey, RSSRMarkers, SurveyError
+from mirrorlab.plugins.pipeline.algorithms import LabSurvey, RSSRMarkers, SurveyError
 from mirrorlab.plugins.tracking import track
 
 SIZE = (1024, 768)

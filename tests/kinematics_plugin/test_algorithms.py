@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import execute
-from mirrorlab.plugins.kinematics.plugin import (
+from mirrorlab.plugins.kinematics.algorithms import (
     ALGORITHMS,
     Derivatives,
     KinematicsParameterError,
