@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from mirrorlab.core.hookspecs import hookimpl
+from mirrorlab.core import hookimpl
 
 
 @hookimpl

@@ -16,10 +16,8 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Emit, Identity, Reporter, SerialInstrument, Status
-from mirrorlab.core.errors import DeviceDisconnected, DeviceReplyError, ProtocolError
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.streams import StreamSpec
+from mirrorlab.core import DeviceDisconnected, DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
+from mirrorlab.core.devices import Emit, Identity, Reporter, SerialInstrument, Status
 
 from .film import PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEP_UM, STEPS_PER_LINE

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import DataError, DeviceDisconnected
+from mirrorlab.core import DataError, DeviceDisconnected
+from mirrorlab.core.devices import Identity
 
 from .wire import PIXELS
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import DeviceDisconnected
+from mirrorlab.core import DeviceDisconnected
+from mirrorlab.core.devices import Identity
 from mirrorlab.instruments.film_scanner.film import OVERSAMPLE, TEX_H, TEX_W, Film
 from mirrorlab.instruments.film_scanner.sources import FrameSource
 from mirrorlab.instruments.film_scanner.wire import PIXELS

@@ -6,13 +6,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Parameter, ParameterSet
-from mirrorlab.core.errors import Problem
-from mirrorlab.core.steps import Step
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Session
-    from mirrorlab.core.registry import Registry
+    from mirrorlab.core import Registry, Session
 
 
 class ImportMarkers(Step):

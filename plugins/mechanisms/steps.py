@@ -13,9 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core.errors import AlgorithmError, Problem
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.steps import Step
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Problem, Step
 
 from .fourbar import LINK_NAMES
 from .swept import strip_area, swept_region
@@ -23,8 +21,7 @@ from .synthetic import TABLE_5_1
 from .walls import ARC_C, ARC_H, arc_wall, astroid_motion, centrodes, eq63_motion, wall_motion
 
 if TYPE_CHECKING:
-    from mirrorlab.core.registry import Registry
-    from mirrorlab.core.session import ResultData, Session
+    from mirrorlab.core import Registry, ResultData, Session
 
 __all__ = ["STEPS", "FourBarReport", "WallReport", "format_four_bar", "format_walls"]
 

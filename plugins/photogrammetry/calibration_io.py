@@ -11,15 +11,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Algorithm
-from mirrorlab.core.errors import SessionError
+from mirrorlab.core import Algorithm, SessionError
 
 from .camera_arrays import CAMERA_KEYS, camera_kind
 from .cameras import find_chessboard_corners
 from .errors import CalibrationError, InvalidArgument
 
 if TYPE_CHECKING:
-    from mirrorlab.core.session import ResultRef, Session
+    from mirrorlab.core import ResultRef, Session
 
 
 def parse_pattern(text: str) -> tuple[int, int]:

@@ -17,14 +17,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.algorithms import Algorithm, RunContext, execute
-from mirrorlab.core.cli.options import add_parameter_options, collected
-from mirrorlab.core.cli.outputs import add_overwrite_option
-from mirrorlab.core.cli.progress import progress_bar
-from mirrorlab.core.clock import SessionClock
-from mirrorlab.core.errors import Problem, ValidationError
-from mirrorlab.core.events import EventBus
-from mirrorlab.core.session import Session
+from mirrorlab.core import (
+    Algorithm,
+    EventBus,
+    Problem,
+    RunContext,
+    Session,
+    SessionClock,
+    ValidationError,
+    add_overwrite_option,
+    add_parameter_options,
+    collected,
+    execute,
+    progress_bar,
+)
 
 from .camera_arrays import CAMERA_KEYS, camera_kind
 from .csvio import read_columns_csv, read_marker_csv, write_points_csv

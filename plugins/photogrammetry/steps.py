@@ -8,16 +8,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Algorithm, Parameter, ParameterSet
-from mirrorlab.core.errors import PluginError, Problem
-from mirrorlab.core.steps import ALGORITHM_TABLES, Step, algorithm_tables
+from mirrorlab.core import ALGORITHM_TABLES, Algorithm, Parameter, ParameterSet, PluginError, Problem, Step, algorithm_tables
 
 from .calibration_io import calibration_inputs, chessboard_inputs, parse_pattern, require_new_camera, store_calibration
 from .errors import InvalidArgument, PhotogrammetryError
 
 if TYPE_CHECKING:
-    from mirrorlab.core.registry import Registry
-    from mirrorlab.core.session import Session
+    from mirrorlab.core import Registry, Session
 
 
 def _lookup(registry: Registry, name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:

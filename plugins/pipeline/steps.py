@@ -5,13 +5,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Parameter, ParameterSet
-from mirrorlab.core.errors import Problem
-from mirrorlab.core.steps import Step
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step
 
 if TYPE_CHECKING:
-    from mirrorlab.core.registry import Registry
-    from mirrorlab.core.session import Session
+    from mirrorlab.core import Registry, Session
 
 
 class Report(Step):

@@ -19,9 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
-from mirrorlab.core.errors import Problem
-from mirrorlab.core.steps import Step
+from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, Problem, RunContext, Step
 
 from .approximate import approximate, input_chain
 from .chain import Chain
@@ -30,8 +28,7 @@ from .sources import Motion, read_bvh_chain, read_marker_chain, session_marker_c
 from .stream import Compute, CSVSink, FilterStats, MemorySink, RetargetFilter, Sink, poses
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Session
-    from mirrorlab.core.registry import Registry
+    from mirrorlab.core import Registry, Session
 
 __all__ = ["Retarget", "RetargetStep", "chain_from", "read_motion", "stream_motion", "CHAIN_PARAMETERS"]
 
