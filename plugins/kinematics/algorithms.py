@@ -109,27 +109,6 @@ def derivative_kwargs(params: Mapping[str, Any]) -> tuple[str, dict[str, Any]]:
     return method, kw
 
 
-def parse_vector(text: str, name: str) -> np.ndarray:
-    """``"x,y,z"`` → array (3,); raises :class:`KinematicsParameterError` naming the parameter.
-
-    Examples
-    --------
-    >>> parse_vector("0, 0, 1", "e").tolist()
-    [0.0, 0.0, 1.0]
-    """
-    try:
-        v = np.array([float(x) for x in str(text).replace(";", ",").split(",")])
-    except ValueError:
-        v = np.zeros(0)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise KinematicsParameterError(f"parameter {name} must be three numbers 'x,y,z', got {text!r}")
-    return v
-
-
-def _vector_text(v: Any) -> str:
-    return ",".join(f"{float(x):.10g}" for x in v)
-
-
 def _as_float(inputs: Mapping[str, np.ndarray], name: str) -> np.ndarray:
     return np.asarray(inputs[name], dtype=float)
 
@@ -378,11 +357,11 @@ class RSSRAngles(Algorithm):
     version = "0.1.0"
     description = "RSSR four-bar: measured theta, phi and derivatives from S_A, S_C markers vs the model (3.39-3.44)"
     parameters = ParameterSet(
-        Parameter("O_A", str, _vector_text(_T.O_A), help="input pivot x,y,z (mm)"),
-        Parameter("e", str, _vector_text(_T.e), help="input axis direction x,y,z"),
-        Parameter("a0", str, _vector_text(_T.a0), help="crank vector O_A->S_A at theta = 0, x,y,z (mm)"),
-        Parameter("d", str, _vector_text(_T.d), help="vector O_A->O_C, x,y,z (mm)"),
-        Parameter("f", str, _vector_text(_T.f), help="output axis direction x,y,z"),
+        Parameter("O_A", float, _T.O_A, unit="mm", shape=(3,), help="input pivot x, y, z"),
+        Parameter("e", float, _T.e, shape=(3,), help="input axis direction x, y, z"),
+        Parameter("a0", float, _T.a0, unit="mm", shape=(3,), help="crank vector O_A->S_A at theta = 0, x, y, z"),
+        Parameter("d", float, _T.d, unit="mm", shape=(3,), help="vector O_A->O_C, x, y, z"),
+        Parameter("f", float, _T.f, shape=(3,), help="output axis direction x, y, z"),
         Parameter("b", float, _T.b, unit="mm", bounds=(0.0, None), help="coupler length"),
         Parameter("c", float, _T.c, unit="mm", bounds=(0.0, None), help="output crank length"),
         Parameter("c1", float, _T.c1, bounds=(-1.0, 1.0), help="c_hat . f_hat (0: crank perpendicular to its axis)"),
@@ -404,8 +383,7 @@ class RSSRAngles(Algorithm):
 
     @staticmethod
     def geometry(params: Mapping[str, Any]) -> RSSRParams:
-        v = {k: tuple(parse_vector(params[k], k)) for k in ("O_A", "e", "a0", "d", "f")}
-        return RSSRParams(v["O_A"], v["e"], v["a0"], v["d"], v["f"], params["b"], params["c"], params["c1"],
+        return RSSRParams(*(tuple(params[k]) for k in ("O_A", "e", "a0", "d", "f")), params["b"], params["c"], params["c1"],
                           params["branch"])
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
@@ -452,7 +430,8 @@ class UpperLimbAnglesAlgorithm(Algorithm):
     description = "upper-limb joint angles theta0-theta6 (thesis 6.4-6.10) and signed variants from P0..P5"
     parameters = ParameterSet(
         Parameter("side", str, "right", choices=("right", "left"), help="arm side (sign of flexion)"),
-        Parameter("vertical", str, "0,1,0", help="laboratory up direction x,y,z (thesis: Y up; C3D often Z up)"),
+        Parameter("vertical", float, (0.0, 1.0, 0.0), shape=(3,),
+                  help="laboratory up direction x, y, z (thesis: Y up; C3D often Z up)"),
         Parameter("pronation_offset", float, 0.0, unit="rad", bounds=(-np.pi, np.pi),
                   help="subtracted from theta4s (pi/2: the mid, thumb-up grip reads 0)"),
         Parameter("on_degenerate", str, "nan", choices=("nan", "raise"),
@@ -471,7 +450,7 @@ class UpperLimbAnglesAlgorithm(Algorithm):
         if (hand[0] is None) != (hand[1] is None):
             raise KinematicsParameterError("the hand angles need both bar ends P4 and P5; give both or neither")
         context.progress(0, 1, "angles")
-        ang = upper_limb_angles(*P, *hand, side=params["side"], vertical=parse_vector(params["vertical"], "vertical"),
+        ang = upper_limb_angles(*P, *hand, side=params["side"], vertical=np.asarray(params["vertical"]),
                                 pronation_offset=params["pronation_offset"], on_degenerate=params["on_degenerate"])
         context.progress(1, 1, "done")
         return {k: getattr(ang, k) for k in UPPER_LIMB_OUTPUTS}

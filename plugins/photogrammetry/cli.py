@@ -20,6 +20,7 @@ import numpy as np
 from mirrorlab.core import (
     Algorithm,
     EventBus,
+    Parameter,
     Problem,
     RunContext,
     Session,
@@ -103,10 +104,11 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 
 def _vector(text: str, option: str) -> np.ndarray:
-    try:
-        return np.array([float(v) for v in text.split(",")])
-    except ValueError:
-        raise ValidationError([Problem(option, f"{text!r} is not a comma-separated list of numbers")]) from None
+    """``"1, 2, 3"`` (units allowed: ``"[1, 2, 3] m"`` in mm) as an input array; a usage error naming ``option``."""
+    value, problem = Parameter(option.lstrip("-").replace("-", "_"), float, shape=(None,)).check(text)
+    if problem:
+        raise ValidationError([Problem(option, problem)])
+    return np.array(value)
 
 
 def _params_for(args: argparse.Namespace, algorithm: type[Algorithm], others: list[type[Algorithm]]) -> dict[str, Any]:

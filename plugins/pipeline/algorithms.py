@@ -29,25 +29,6 @@ _CAMERA_PORTS = tuple(Port(k, f"camera array {k} (a /calibration/<camera> group)
                       for k in CAMERA_KEYS)
 
 
-def parse_rows(text: str, columns: int, name: str) -> np.ndarray:
-    """``"a,b,c; d,e,f"`` → array (rows, columns); raises :class:`SurveyError` naming the parameter.
-
-    Examples
-    --------
-    >>> parse_rows("1, 2, 3; 4, 5, 6", 3, "corners").tolist()
-    [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
-    """
-    try:
-        rows = [[float(x) for x in row.split(",")] for row in str(text).split(";") if row.strip()]
-        a = np.array(rows, float)
-    except ValueError:
-        a = np.zeros((0, 0))
-    if a.ndim != 2 or a.shape[1] != columns or len(a) == 0 or not np.all(np.isfinite(a)):
-        raise SurveyError(f"parameter {name} must be rows of {columns} numbers separated by ';' "
-                          f"(e.g. '{', '.join(['0'] * columns)}; ...'), got {text!r}")
-    return a
-
-
 def _camera(inputs: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     return {k: np.asarray(inputs[k]) for k in CAMERA_KEYS if k in inputs}
 
@@ -59,8 +40,9 @@ class LabSurvey(Algorithm):
     version = "0.1.0"
     description = "surveyed camera centre and mirror corners (mm) as arrays for later steps"
     parameters = ParameterSet(
-        Parameter("camera_center", str, help="camera centre F1 x,y,z (mm), measured in the lab"),
-        Parameter("mirror_corners", str, help="mirror corners 'x,y,z; x,y,z; ...' (mm), in order around it"),
+        Parameter("camera_center", float, unit="mm", shape=(3,), help="camera centre F1 x, y, z, measured in the lab"),
+        Parameter("mirror_corners", float, unit="mm", shape=(None, 3),
+                  help="mirror corners 'x, y, z; x, y, z; ...', in order around it (at least 3)"),
     )
     inputs = ()
     outputs = (Port("camera_center", "(3,) camera centre F1", "mm"),
@@ -68,12 +50,11 @@ class LabSurvey(Algorithm):
                Port("mirror_point", "(3,) centroid of the corners, the point G on the mirror", "mm"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
-        f1 = parse_rows(params["camera_center"], 3, "camera_center")
-        corners = parse_rows(params["mirror_corners"], 3, "mirror_corners")
-        if len(f1) != 1 or len(corners) < 3:
-            raise SurveyError(f"camera_center needs one x,y,z and mirror_corners at least 3 corners; got "
-                              f"{len(f1)} and {len(corners)}")
-        return {"camera_center": f1[0], "mirror_corners": corners, "mirror_point": corners.mean(axis=0)}
+        corners = np.asarray(params["mirror_corners"], float).reshape(-1, 3)
+        if len(corners) < 3:
+            raise SurveyError(f"mirror_corners needs at least 3 corners (x, y, z; ...), got {len(corners)}")
+        return {"camera_center": np.asarray(params["camera_center"], float), "mirror_corners": corners,
+                "mirror_point": corners.mean(axis=0)}
 
 
 class MatchGrid(Algorithm):
@@ -84,8 +65,8 @@ class MatchGrid(Algorithm):
     description = "match detected calibration-grid blobs to the grid's points (plane X, Y in mm)"
     parameters = ParameterSet(
         Parameter("pitch", float, 60.0, unit="mm", bounds=(0.0, None), help="grid pitch"),
-        Parameter("references", str, help="two identified discs 'X,Y,u,v; X,Y,u,v': grid point (X, Y) mm near "
-                                          "pixel (u, v)"),
+        Parameter("references", float, shape=(2, 4), help="two identified discs 'X, Y, u, v; X, Y, u, v': grid "
+                                                           "point (X, Y) mm near pixel (u, v)"),
         Parameter("frame", int, 0, bounds=(0, None), help="which frame of the detections is the grid"),
         Parameter("tol", float, 0.25, bounds=(0.01, 0.5), help="largest blob distance from its lattice point, pitches"),
     )
@@ -103,7 +84,7 @@ class MatchGrid(Algorithm):
         if xy.ndim != 3 or params["frame"] >= len(xy):
             raise ViewSplitError(f"xy must be (F, K, 2) with frame {params['frame']} in it, got shape {xy.shape}")
         context.progress(0, 1, "matching grid")
-        m = match_grid(xy[params["frame"]], params["pitch"], parse_rows(params["references"], 4, "references"),
+        m = match_grid(xy[params["frame"]], params["pitch"], np.asarray(params["references"]),
                        tol=params["tol"])
         context.progress(1, 1, "matched")
         return {"image_xy": m.image_xy, "plane_xy": m.plane_xy, "lattice": m.lattice, "homography": m.homography,
@@ -218,8 +199,8 @@ class RSSRMarkers(Algorithm):
     version = "0.1.0"
     description = "label RSSR tracks S_A / S_C by their distance from the input axis; frame times"
     parameters = ParameterSet(
-        Parameter("O_A", str, "0,0,0", help="input pivot x,y,z (mm), world frame"),
-        Parameter("e", str, "0,0,1", help="input axis direction x,y,z"),
+        Parameter("O_A", float, (0.0, 0.0, 0.0), unit="mm", shape=(3,), help="input pivot x, y, z, world frame"),
+        Parameter("e", float, (0.0, 0.0, 1.0), shape=(3,), help="input axis direction x, y, z"),
         Parameter("crank", float, 61.0, unit="mm", bounds=(0.0, None), help="input crank radius |a0|"),
         Parameter("frame_rate", float, 0.0, unit="Hz", bounds=(0.0, None),
                   help="shooting rate of the frames; 0 = estimate it from the recorded stamps. Give it for "
@@ -234,15 +215,13 @@ class RSSRMarkers(Algorithm):
                Port("frame_period", "() frame period: 1 / frame_rate, else the Theil-Sen slope of the stamps", "s"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
-        from mirrorlab.plugins.kinematics.algorithms import parse_vector
-
         pts = np.asarray(inputs["points"], float)
         stamp = np.asarray(inputs["time"], float).reshape(-1)
         index = np.asarray(inputs["frame_index"], float).reshape(-1)
         if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] < 2 or not (len(pts) == len(stamp) == len(index)):
             raise ViewSplitError(f"points must be (F, T >= 2, 3) with F = len(time) = len(frame_index); got "
                                  f"{pts.shape}, {stamp.shape}, {index.shape}")
-        O, e = parse_vector(params["O_A"], "O_A"), parse_vector(params["e"], "e")
+        O, e = np.asarray(params["O_A"]), np.asarray(params["e"])
         e = e / np.linalg.norm(e)
         rel = pts - O
         radial = np.linalg.norm(rel - (rel @ e)[..., None] * e, axis=2)          # (F, T)

@@ -33,7 +33,8 @@ if TYPE_CHECKING:
 __all__ = ["Retarget", "RetargetStep", "chain_from", "read_motion", "stream_motion", "CHAIN_PARAMETERS"]
 
 CHAIN_PARAMETERS = (
-    Parameter("lengths", str, help="output link lengths in mm, comma-separated, e.g. '295.9,229.5'"),
+    Parameter("lengths", float, unit="mm", shape=(None,),
+              help="output link lengths, comma-separated, e.g. '295.9, 229.5'"),
     Parameter("axes", str, help="output joint axes, one string per joint, comma-separated, e.g. 'zyx,y'"),
     Parameter("method", str, "lm", choices=("lm", "paper"),
               help="lm: warm-started Levenberg-Marquardt with multistart fallback; paper: per-joint Newton sweeps"),
@@ -43,22 +44,15 @@ CHAIN_PARAMETERS = (
 )
 
 
-def _floats(text: str, name: str) -> list[float]:
-    try:
-        return [float(x) for x in str(text).replace(";", ",").split(",") if x.strip()]
-    except ValueError:
-        raise ChainDefinitionError(f"parameter {name} must be comma-separated numbers, got {text!r}") from None
-
-
 def chain_from(params: Mapping[str, Any]) -> Chain:
-    """The output :class:`Chain` of the ``lengths`` (mm) and ``axes`` parameters (base on the input root).
+    """The output :class:`Chain` of the validated ``lengths`` (mm) and ``axes`` parameters (base on the input root).
 
     Examples
     --------
-    >>> chain_from({"lengths": "300, 250", "axes": "zyx, y"}).dof
+    >>> chain_from({"lengths": (300.0, 250.0), "axes": "zyx, y"}).dof
     4
     """
-    return Chain(_floats(params["lengths"], "lengths"), [a.strip() for a in str(params["axes"]).split(",") if a.strip()])
+    return Chain(list(params["lengths"]), [a.strip() for a in str(params["axes"]).split(",") if a.strip()])
 
 
 def read_motion(path: Path, joints: list[str], scale: float = 1.0, skip: int = 0, dataset: str = "") -> Motion:

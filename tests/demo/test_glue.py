@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mirrorlab.core import ValidationError
 from mirrorlab.core.algorithms import execute
 from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.plugins.pairing import mirror_epipole
@@ -166,8 +167,10 @@ def test_assign_views_mirror_image_never_direct() -> None:
 def test_lab_survey_and_errors() -> None:
     out = execute(LabSurvey, {}, {"camera_center": "1, 2, 3", "mirror_corners": "0,0,0; 2,0,0; 2,2,0; 0,2,0"})
     assert out.status == "ok" and out.outputs["mirror_point"].tolist() == [1.0, 1.0, 0.0]
-    bad = execute(LabSurvey, {}, {"camera_center": "1, 2", "mirror_corners": "0,0,0; 2,0,0; 2,2,0"})
-    assert bad.status == "failed" and "camera_center must be rows of 3 numbers" in bad.error
+    with pytest.raises(ValidationError, match=r"camera_center: expected 3 values \(float\[3\] in mm\), got 2"):
+        execute(LabSurvey, {}, {"camera_center": "1, 2", "mirror_corners": "0,0,0; 2,0,0; 2,2,0"})
+    bad = execute(LabSurvey, {}, {"camera_center": "[1, 2, 3] m", "mirror_corners": "0,0,0; 2,0,0"})
+    assert bad.status == "failed" and "mirror_corners needs at least 3 corners" in bad.error
     assert issubclass(SurveyError, ValueError)
 
 
