@@ -1,10 +1,15 @@
-"""Registration of the retarget adapters: the ``retarget`` algorithm and step (:mod:`.algorithms`); nothing else lives here."""
+"""Registration of the retarget adapters: the ``retarget`` algorithm (:mod:`.algorithms`) and step
+(:mod:`.steps`).
+
+Nothing else lives here.
+"""
 
 from __future__ import annotations
 
 from mirrorlab.core import hookimpl
 
-from .algorithms import Retarget, RetargetStep
+from .algorithms import Retarget
+from .steps import RetargetStep
 
 
 @hookimpl
