@@ -5,12 +5,11 @@ plugin, the CLI in a subprocess)."""
 from __future__ import annotations
 
 import json
-import textwrap
 from pathlib import Path
 
 import pytest
 
-from tests.support import pip_install_target, run_cli
+from tests.support import plugin_site, run_cli
 
 PLUGIN = '''
 import numpy as np
@@ -58,22 +57,8 @@ seconds = "250 ms"
 
 @pytest.fixture(scope="module")
 def survey_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    src = tmp_path_factory.mktemp("survey-src")
-    (src / "survey_mirrorlab").mkdir()
-    (src / "survey_mirrorlab" / "__init__.py").write_text(PLUGIN)
-    (src / "pyproject.toml").write_text(textwrap.dedent("""
-        [build-system]
-        requires = ["setuptools>=61"]
-        build-backend = "setuptools.build_meta"
-        [project]
-        name = "mirrorlab-survey"
-        version = "1.0.0"
-        [project.entry-points.mirrorlab]
-        survey = "survey_mirrorlab"
-        [tool.setuptools]
-        packages = ["survey_mirrorlab"]
-    """))
-    return pip_install_target(src, tmp_path_factory.mktemp("survey-site"))
+    return plugin_site(PLUGIN, "mirrorlab-survey", "survey", tmp_path_factory.mktemp("survey-src"),
+                       tmp_path_factory.mktemp("survey-site"))
 
 
 def test_plugin_with_pint_unit_and_vector_loads(survey_site: Path) -> None:
