@@ -109,9 +109,10 @@ class Registry:
             info = self.plugins[name]
             try:
                 found[name] = {kind: self._call(kind, name) for kind in KINDS}
-            except Exception as exc:
-                info.error = f"{exc}" if isinstance(exc, PluginError) else f"{type(exc).__name__}: {exc}"
+            except PluginError as exc:
+                info.error = str(exc)
                 info.traceback = traceback.format_exc()
+                self.pm.unregister(name=name)  # nothing of a broken plugin runs: no hooks, no wrappers
         for kind in KINDS:  # providers of one name in pluggy's call order (tryfirst first)
             for name in self._call_order(kind):
                 for cls in found.get(name, {}).get(kind, ()):
@@ -128,7 +129,10 @@ class Registry:
         if len(others) == len(self._call_order(kind)):
             return []  # no implementation of this hook in this plugin
         caller = self.pm.subset_hook_caller(HOOKS[kind], remove_plugins=others)
-        classes = [cls for result in caller() for cls in (result or ())]
+        try:
+            classes = [cls for result in caller() for cls in (result or ())]
+        except Exception as exc:
+            raise PluginError(f"plugin {name!r}: {HOOKS[kind]} failed: {type(exc).__name__}: {exc}") from exc
         for cls in classes:
             self._check_declaration(kind, cls, name)
         return classes

@@ -104,7 +104,8 @@ def test_add_plugin_at_run_time_all_or_nothing() -> None:
 
     reg = Registry(entry_points=False)
     info = reg.add_plugin(HalfBroken(), "half")
-    assert not info.ok and "step table corrupt" in info.error
+    assert not info.ok and info.error == "plugin 'half': mirrorlab_register_steps failed: RuntimeError: step table corrupt"
+    assert not reg.pm.has_plugin("half")  # its lifecycle hooks are not called either
     with pytest.raises(PluginError, match="no algorithm named 'inline_ok'"):
         reg.algorithm("inline_ok")  # nothing of a broken plugin is usable
     class Fine:
