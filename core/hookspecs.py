@@ -55,7 +55,9 @@ def mirrorlab_register_instruments() -> list[type[Instrument]]:
     """Return the instrument classes this plugin provides.
 
     Each class subclasses :class:`mirrorlab.core.devices.Instrument` and declares ``name``,
-    ``version``, ``description`` and ``parameters``; serial instruments also set ``simulator``.
+    ``version``, ``description`` and ``parameters``; a simulated device sets ``simulator`` (or
+    overrides :meth:`~mirrorlab.core.devices.Instrument.make_simulator`). A class of another kind
+    makes the plugin broken, with a one-line error naming it.
     """
 
 
