@@ -4,6 +4,12 @@ Public API::
 
     from mirrorlab.core import Session, hookimpl, Parameter, ParameterSet, get_registry
 
+Plugins import what they need from here (and instrument drivers from ``mirrorlab.core.devices``),
+never from the core's internal modules: besides the classes above, the recipe ``Step`` base and
+its helpers, ``execute`` (run an algorithm without a session), the CLI helpers of plugin commands
+(``add_parameter_options``, ``collected``, ``plain``, ``existing_path``, ``add_overwrite_option``,
+``progress_bar``), ``SessionClock``, ``EventBus`` and the file ``schema``.
+
 Names other than the errors are imported on first use (PEP 562), so that light entry points such
 as ``mirrorlab --version`` (``mirrorlab.core.cli``) do not pay for numpy and h5py.
 """
@@ -16,39 +22,62 @@ from typing import TYPE_CHECKING, Any
 from .errors import (
     AlgorithmError,
     AlgorithmInputError,
+    ConfigurationError,
     DamagedFileError,
+    DataError,
     DeviceDisconnected,
     DeviceError,
     DeviceReplyError,
     DeviceTimeout,
     DuplicateNameError,
     MirrorlabError,
+    MirrorlabWarning,
     PluginError,
     Problem,
     ProtocolError,
     SessionError,
+    SessionExistsError,
+    StoppedOnRequest,
     ValidationError,
 )
 
 if TYPE_CHECKING:
-    from .algorithms import Algorithm, Port, ResultRef, RunContext
+    from .algorithms import Algorithm, Port, ResultRef, RunContext, execute
+    from .cli.options import add_parameter_options, collected, existing_path, plain
+    from .cli.outputs import add_overwrite_option
+    from .cli.progress import progress_bar
+    from .clock import SessionClock
+    from .controller_runtime import ControllerContext
+    from .controllers import Controller
+    from .events import EventBus
     from .hookspecs import hookimpl
     from .params import Parameter, ParameterSet
-    from .registry import get_registry
-    from .session import Session
-    from .streams import StreamSpec
+    from .registry import Registry, get_registry
+    from .session import ResultData, Session
+    from .steps import ALGORITHM_TABLES, Step, algorithm_tables
+    from .store import schema
+    from .streams import Block, StreamSpec
 
 #: Public name -> the sub-module that defines it (imported when the name is first used).
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
-         "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params", "get_registry": "registry",
-         "Session": "session", "StreamSpec": "streams"}
+         "execute": "algorithms", "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params",
+         "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
+         "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
+         "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
+         "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
+         "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
+         "plain": "cli.options", "add_overwrite_option": "cli.outputs", "progress_bar": "cli.progress",
+         "schema": "store.schema"}
 
 __all__ = [
-    "Algorithm", "AlgorithmError", "AlgorithmInputError", "DamagedFileError", "DeviceDisconnected", "DeviceError",
-    "DeviceReplyError", "DeviceTimeout",
-    "DuplicateNameError", "MirrorlabError", "Parameter", "ParameterSet", "PluginError", "Port", "Problem",
-    "ProtocolError", "ResultRef", "RunContext", "Session", "SessionError", "StreamSpec", "ValidationError",
-    "get_registry", "hookimpl",
+    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "ConfigurationError",
+    "Controller", "ControllerContext", "DamagedFileError", "DataError", "DeviceDisconnected", "DeviceError",
+    "DeviceReplyError", "DeviceTimeout", "DuplicateNameError", "EventBus", "MirrorlabError", "MirrorlabWarning",
+    "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",
+    "ResultRef", "RunContext", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
+    "StoppedOnRequest", "StreamSpec", "ValidationError", "add_overwrite_option", "add_parameter_options",
+    "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "plain", "progress_bar",
+    "schema",
 ]
 
 
@@ -56,7 +85,8 @@ def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    imported = importlib.import_module(f".{module}", __name__)
+    value = imported if module.endswith(f".{name}") else getattr(imported, name)  # a module (``schema``) or a name
     globals()[name] = value  # later look-ups skip this function
     return value
 

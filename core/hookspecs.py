@@ -1,8 +1,10 @@
 """Hook specifications of the ``mirrorlab`` pluggy project.
 
-A plugin is any module or object with functions marked by :data:`hookimpl`. Built-in plugins are
-``mirrorlab.instruments`` and ``mirrorlab.plugins``; third-party plugins are found through the
-entry-point group ``mirrorlab``::
+A plugin is any module or object with functions marked by :data:`hookimpl` (unmarked functions
+are not hook implementations). Every plugin, built-in or third-party, is found through the
+entry-point group ``mirrorlab``; the built-in ones are entry points of the ``mirrorlab``
+distribution (``mirrorlab.core.steps``, ``mirrorlab.instruments``, each
+``mirrorlab.plugins.<name>.plugin``)::
 
     # pyproject.toml of a third-party package
     [project.entry-points.mirrorlab]
@@ -15,9 +17,10 @@ entry-point group ``mirrorlab``::
     def mirrorlab_register_instruments():
         return [AcmeTracker]
 
-Registration hooks return *classes*; the :class:`~mirrorlab.core.registry.Registry` checks each
-declaration (name, version, description, typed parameters) and records which plugin provided it,
-so that duplicates can be reported naming both providers.
+Registration hooks return *classes*. The :class:`~mirrorlab.core.registry.Registry` calls them
+through pluggy (``tryfirst`` / ``trylast`` and hook wrappers apply), checks each declaration (the
+base class of its kind, name, version, description, typed parameters) and records which plugin
+provided it, so that duplicates can be reported naming both providers.
 
 Lifecycle hooks are notifications: they are called in the session's thread, must return
 quickly and must not raise (an exception is logged against the plugin and the session goes on).
@@ -52,7 +55,9 @@ def mirrorlab_register_instruments() -> list[type[Instrument]]:
     """Return the instrument classes this plugin provides.
 
     Each class subclasses :class:`mirrorlab.core.devices.Instrument` and declares ``name``,
-    ``version``, ``description`` and ``parameters``; serial instruments also set ``simulator``.
+    ``version``, ``description`` and ``parameters``; a simulated device sets ``simulator`` (or
+    overrides :meth:`~mirrorlab.core.devices.Instrument.make_simulator`). A class of another kind
+    makes the plugin broken, with a one-line error naming it.
     """
 
 

@@ -8,18 +8,32 @@ A plugin declares them once::
         Parameter("fps", float, default=30.0, unit="Hz", bounds=(0.1, 1000.0),
                   help="frames per second"),
         Parameter("source", str, default="fscan", choices=("fscan", "folder")),
+        Parameter("camera_center", float, shape=(3,), unit="mm", help="camera centre x, y, z"),
     )
 
 and :meth:`ParameterSet.validate` turns user input (TOML values, ``--set`` strings, form fields)
 into typed values or a list of :class:`~mirrorlab.core.errors.Problem`.
 
-Quantities with a unit accept a bare number (taken in the declared unit) or a string
-``"<number> <unit>"`` in any unit of the same dimension (``"250 ms"`` for a parameter in ``s``).
+**Units.** A unit is any unit `pint <https://pint.readthedocs.io>`_ understands (``"m/s"``,
+``"dB"``, ``"V"``, ``"%"``, ``"degC"``); mirrorlab's API units are mm, s, rad and Hz. Quantities
+accept a bare number (taken in the declared unit) or a string ``"<number> <unit>"`` in any unit of
+the same dimension (``"250 ms"`` for a parameter in ``s``, ``"68 degF"`` for one in ``degC``), and
+the plugin always receives the value in its declared unit. Conversions between the common units
+(:data:`_UNITS`) need no import; pint is imported on first use of any other unit.
+
+**Vectors.** ``shape=(3,)`` makes a parameter an array of ``int`` or ``float`` (``None`` in a shape
+is any length: ``shape=(None, 3)`` for a list of points). It accepts a TOML array
+(``[435.7, 202.6, 1442.0]``, elements may carry units: ``["0.4 m", "0.2 m", "1.4 m"]``) or a string
+(``"435.7, 202.6, 1442.0"``; rows separated by ``;``; one unit for all in brackets:
+``"[0.4, 0.2, 1.4] m"``). The value is a tuple (of tuples), bounds apply to every element, and a
+wrong length is a problem naming the key, found when a recipe is loaded.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import re
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,7 +42,8 @@ from typing import Any
 from .errors import Problem, ValidationError
 
 # Unit -> (dimension, factor to the dimension's base unit). Base units are mirrorlab's API units:
-# mm, s, rad, Hz. Kept deliberately small: these are the units our instruments and recipes use.
+# mm, s, rad, Hz. The units our instruments and recipes use most, converted without importing pint
+# (whose import and unit registry cost about a second, too much for CLI start-up).
 _UNITS: dict[str, tuple[str, float]] = {
     "mm": ("length", 1.0),
     "um": ("length", 1e-3),
@@ -51,22 +66,58 @@ _UNITS: dict[str, tuple[str, float]] = {
 _TYPE_NAMES = {int: "int", float: "float", bool: "bool", str: "str", Path: "path"}
 
 
+@functools.cache
+def _pint() -> Any:
+    """The one pint unit registry of the process (imported on first use)."""
+    import pint
+
+    return pint.UnitRegistry(autoconvert_offset_to_baseunit=True)
+
+
+def check_unit(unit: str) -> None:
+    """Raise ``ValueError`` unless ``unit`` is ``""`` (dimensionless) or a unit pint understands.
+
+    Examples
+    --------
+    >>> check_unit("m/s")
+    >>> check_unit("bogons/s")
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown unit 'bogons/s' (pint: 'bogons' is not defined in the unit registry)
+    """
+    if not unit or unit in _UNITS:
+        return
+    try:
+        _pint().parse_units(unit)
+    except Exception as exc:  # pint's parser raises many kinds on malformed text (even AssertionError)
+        raise ValueError(f"unknown unit {unit!r} (pint: {exc or 'not a unit expression'})") from None
+
+
 def convert_unit(value: float, from_unit: str, to_unit: str) -> float:
-    """Convert ``value`` from ``from_unit`` to ``to_unit`` (same dimension).
+    """Convert ``value`` from ``from_unit`` to ``to_unit`` (same dimension; offsets such as degC included).
 
     Examples
     --------
     >>> convert_unit(250, "ms", "s")
     0.25
+    >>> round(convert_unit(68, "degF", "degC"), 9)
+    20.0
     """
+    if from_unit in _UNITS and to_unit in _UNITS:
+        (dim_a, fa), (dim_b, fb) = _UNITS[from_unit], _UNITS[to_unit]
+        if dim_a != dim_b:
+            raise ValueError(f"cannot convert {from_unit} ({dim_a}) to {to_unit} ({dim_b})")
+        return value * fa / fb
+    check_unit(from_unit)
+    check_unit(to_unit)
+    import pint
+
+    ureg = _pint()
     try:
-        dim_a, fa = _UNITS[from_unit]
-        dim_b, fb = _UNITS[to_unit]
-    except KeyError as exc:
-        raise ValueError(f"unknown unit {exc.args[0]!r}; known units: {', '.join(_UNITS)}") from None
-    if dim_a != dim_b:
-        raise ValueError(f"cannot convert {from_unit} ({dim_a}) to {to_unit} ({dim_b})")
-    return value * fa / fb
+        return float(ureg.Quantity(value, from_unit).to(to_unit).magnitude)
+    except pint.errors.DimensionalityError:
+        dim_a, dim_b = (ureg.parse_units(u).dimensionality for u in (from_unit, to_unit))
+        raise ValueError(f"cannot convert {from_unit} ({dim_a}) to {to_unit} ({dim_b})") from None
 
 
 @dataclass(frozen=True)
@@ -78,13 +129,15 @@ class Parameter:
     name
         Identifier (``snake_case``); also the recipe key and the CLI option ``--name``.
     type
-        One of ``int``, ``float``, ``bool``, ``str``, ``pathlib.Path``.
+        One of ``int``, ``float``, ``bool``, ``str``, ``pathlib.Path``; the element type of a vector.
     default
         Default value; ``None`` makes the parameter required.
     unit
-        Unit of the value (``"mm"``, ``"s"``, ``"rad"``, ``"Hz"`` ...); ``""`` for dimensionless.
+        Unit of the value, any unit pint understands (``"mm"``, ``"s"``, ``"rad"``, ``"Hz"``,
+        ``"m/s"``, ``"degC"`` ...); ``""`` for dimensionless. Values given in another unit of the
+        same dimension are converted into this one.
     bounds
-        Inclusive ``(low, high)`` for numbers; either end may be ``None``.
+        Inclusive ``(low, high)`` for numbers (every element of a vector); either end may be ``None``.
     choices
         Allowed values (for ``str`` or ``int``).
     help
@@ -93,6 +146,17 @@ class Parameter:
         Settable while the instrument acquires, one value at a time, through
         :meth:`mirrorlab.core.devices.Instrument.set` (a set-point: a target angle, a gain);
         other settings change only through a full ``configure``.
+    shape
+        Makes the parameter an array of ``int`` or ``float`` of this shape (``(3,)``: a point;
+        ``(None, 3)``: any number of points); the value is a tuple (of tuples).
+
+    Examples
+    --------
+    >>> centre = Parameter("camera_center", float, shape=(3,), unit="mm")
+    >>> centre.check("[0.4, 0.2, 1.4] m")
+    ((400.0, 200.0, 1400.0), None)
+    >>> centre.check([1, 2])[1]
+    'expected 3 values (float[3] in mm), got 2: [1, 2]'
     """
 
     name: str
@@ -103,16 +167,29 @@ class Parameter:
     choices: tuple[Any, ...] | None = None
     help: str = ""
     live: bool = False
+    shape: tuple[int | None, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.type not in _TYPE_NAMES:
             raise TypeError(f"parameter {self.name!r}: unsupported type {self.type!r}")
-        if self.unit and self.unit not in _UNITS:
-            raise ValueError(f"parameter {self.name!r}: unknown unit {self.unit!r}")
+        if self.shape is not None:
+            object.__setattr__(self, "shape", tuple(self.shape))
+            if self.type not in (int, float):
+                raise TypeError(f"parameter {self.name!r}: a shape needs type int or float, not {self.type_name}")
+            if not self.shape or not all(n is None or (isinstance(n, int) and n > 0) for n in self.shape):
+                raise ValueError(f"parameter {self.name!r}: shape must be positive lengths or None, got {self.shape!r}")
+            if self.choices is not None:
+                raise ValueError(f"parameter {self.name!r}: choices do not apply to a vector")
+        try:
+            check_unit(self.unit)
+        except ValueError as exc:
+            raise ValueError(f"parameter {self.name!r}: {exc}") from None
         if self.default is not None:
-            problem = self.check(self.default)[1]
+            value, problem = self.check(self.default)
             if problem:
                 raise ValueError(f"parameter {self.name!r}: default {self.default!r} {problem}")
+            if self.shape is not None:  # a list default becomes the (hashable) tuple every value is
+                object.__setattr__(self, "default", value)
 
     @property
     def required(self) -> bool:
@@ -120,15 +197,19 @@ class Parameter:
 
     @property
     def type_name(self) -> str:
-        return _TYPE_NAMES[self.type]
+        """``float``, or with a shape ``float[3]`` / ``float[N,3]``."""
+        base = _TYPE_NAMES[self.type]
+        if self.shape is None:
+            return base
+        return f"{base}[{','.join('N' if n is None else str(n) for n in self.shape)}]"
 
     def check(self, value: Any) -> tuple[Any, str | None]:
-        """Coerce ``value`` to this parameter's type and unit.
+        """Coerce ``value`` to this parameter's type, shape and unit.
 
         Returns ``(value, None)`` on success or ``(None, reason)``.
         """
         try:
-            coerced = self._coerce(value)
+            coerced = self._coerce(value) if self.shape is None else self._coerce_array(value)
         except (TypeError, ValueError) as exc:
             return None, str(exc)
         if self.choices is not None and coerced not in self.choices:
@@ -136,10 +217,13 @@ class Parameter:
         if self.bounds is not None and self.type in (int, float):
             lo, hi = self.bounds
             unit = f" {self.unit}" if self.unit else ""
-            if lo is not None and coerced < lo:
-                return None, f"{coerced}{unit} is below the minimum {lo}{unit}"
-            if hi is not None and coerced > hi:
-                return None, f"{coerced}{unit} is above the maximum {hi}{unit}"
+            flat = [coerced] if self.shape is None else list(_flatten(coerced))
+            where = "" if self.shape is None else "an element: "
+            for x in flat:
+                if lo is not None and x < lo:
+                    return None, f"{where}{x}{unit} is below the minimum {lo}{unit}"
+                if hi is not None and x > hi:
+                    return None, f"{where}{x}{unit} is above the maximum {hi}{unit}"
         return coerced, None
 
     def _coerce(self, value: Any) -> Any:
@@ -160,7 +244,10 @@ class Parameter:
             if not isinstance(value, (str, Path)):
                 raise TypeError(f"expected a path, got {type(value).__name__} {value!r}")
             return Path(value)
-        # Numbers: bare number in the declared unit, or "<number> <unit>".
+        return self._coerce_number(value)
+
+    def _coerce_number(self, value: Any) -> int | float:
+        """A bare number in the declared unit, or ``"<number> <unit>"``."""
         if isinstance(value, bool):
             raise TypeError(f"expected a number, got the boolean {value!r}")
         if isinstance(value, str):
@@ -169,7 +256,7 @@ class Parameter:
             number = value
         else:
             raise TypeError(f"expected a number, got {type(value).__name__} {value!r}")
-        if t is int:
+        if self.type is int:
             if isinstance(number, float) and not number.is_integer():
                 raise TypeError(f"expected a whole number, got {number!r}")
             return int(number)
@@ -178,35 +265,95 @@ class Parameter:
         return float(number)
 
     def _parse_quantity(self, text: str) -> float:
-        parts = text.split()
+        number_text, _, unit = text.strip().partition(" ")
         try:
-            number = float(parts[0]) if parts else float("nan")
+            number = float(number_text)
         except ValueError:
             raise TypeError(f"expected a number, got {text!r}") from None
-        if len(parts) == 1:
+        unit = unit.strip()
+        if not unit:
             return number
-        if len(parts) != 2:
-            raise TypeError(f"expected '<number> <unit>', got {text!r}")
         if not self.unit:
-            raise ValueError(f"is dimensionless but was given the unit {parts[1]!r}")
+            raise ValueError(f"is dimensionless but was given the unit {unit!r}")
         try:
-            return convert_unit(number, parts[1], self.unit)
+            return convert_unit(number, unit, self.unit)
         except ValueError as exc:
             raise ValueError(f"wrong unit: {exc}") from None
+
+    def _coerce_array(self, value: Any) -> tuple[Any, ...]:
+        assert self.shape is not None
+        if isinstance(value, str):
+            value = self._split_array(value)
+        elif hasattr(value, "tolist"):  # a numpy array from a script
+            value = value.tolist()
+        return self._nest(value, self.shape, ())
+
+    def _split_array(self, text: str) -> list[Any]:
+        """``"1, 2, 3"``, ``"1 m, 2 m, 3 m"``, ``"[1, 2, 3] m"``, rows ``"1, 2; 3, 4"`` → nested lists of strings."""
+        assert self.shape is not None
+        bracketed = re.fullmatch(r"\s*[\[(](.*)[\])]\s*(.*)", text, re.S)
+        body, unit = (bracketed.group(1), bracketed.group(2).strip()) if bracketed else (text, "")
+        if unit and re.search(r"[^\d.eE+\-\s,;]", body):
+            raise ValueError(f"give either one unit after the brackets or one per element, not both: {text!r}")
+        rows = [[f"{e.strip()} {unit}".strip() for e in row.split(",") if e.strip()]
+                for row in body.split(";") if row.strip()]
+        if len(self.shape) == 1:
+            if len(rows) > 1:
+                raise ValueError(f"expected one row of numbers separated by ',' ({self.type_name}), got {text!r}")
+            return rows[0] if rows else []
+        if len(self.shape) == 2:
+            return rows
+        raise TypeError(f"give a {len(self.shape)}-dimensional {self.type_name} as a (TOML) array, not a string")
+
+    def _nest(self, value: Any, shape: tuple[int | None, ...], index: tuple[int, ...]) -> tuple[Any, ...]:
+        at = f" at [{', '.join(map(str, index))}]" if index else ""
+        if not isinstance(value, (list, tuple)):
+            raise TypeError(f"expected {self._expected(shape)}{at}, got {type(value).__name__} {value!r}")
+        if shape[0] is not None and len(value) != shape[0]:
+            raise ValueError(f"expected {self._expected(shape)}{at}, got {len(value)}: {list(value)!r}")
+        if len(shape) > 1:
+            return tuple(self._nest(v, shape[1:], (*index, i)) for i, v in enumerate(value))
+        out = []
+        for i, v in enumerate(value):
+            try:
+                out.append(self._coerce_number(v))
+            except (TypeError, ValueError) as exc:
+                raise type(exc)(f"element [{', '.join(map(str, (*index, i)))}]: {exc}") from None
+        return tuple(out)
+
+    def _expected(self, shape: tuple[int | None, ...]) -> str:
+        count = "a list of" if shape[0] is None else f"{shape[0]}"
+        what = "values" if len(shape) == 1 else "rows"
+        unit = f" in {self.unit}" if self.unit else ""
+        return f"{count} {what} ({self.type_name}{unit})"
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready description (for ``mirrorlab plugins --json`` and TUI forms)."""
         return {
             "name": self.name,
             "type": self.type_name,
-            "default": str(self.default) if isinstance(self.default, Path) else self.default,
+            "default": str(self.default) if isinstance(self.default, Path) else _lists(self.default),
             "unit": self.unit,
             "bounds": list(self.bounds) if self.bounds else None,
             "choices": list(self.choices) if self.choices else None,
             "help": self.help,
             "required": self.required,
             "live": self.live,
+            "shape": list(self.shape) if self.shape else None,
         }
+
+
+def _flatten(value: Any) -> Iterator[Any]:
+    for v in value:
+        if isinstance(v, tuple):
+            yield from _flatten(v)
+        else:
+            yield v
+
+
+def _lists(value: Any) -> Any:
+    """Tuples (of tuples) as lists, for JSON."""
+    return [_lists(v) for v in value] if isinstance(value, tuple) else value
 
 
 @dataclass(frozen=True)
@@ -283,5 +430,5 @@ class ParameterSet:
 
 
 def to_jsonable(values: Mapping[str, Any]) -> dict[str, Any]:
-    """Parameter values with paths as strings, ready for ``json.dumps``."""
-    return {k: str(v) if isinstance(v, Path) else v for k, v in values.items()}
+    """Parameter values with paths as strings and vectors as lists, ready for ``json.dumps``."""
+    return {k: str(v) if isinstance(v, Path) else _lists(v) for k, v in values.items()}

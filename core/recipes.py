@@ -202,8 +202,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         sim_table = _table(table, "simulator", problems, file, where)
         simulator, more = SIMULATOR_OPTIONS.problems(sim_table, f"{where}.simulator", file)
         problems += more
-        if values.get("simulate") and getattr(cls, "simulator", None) is None and \
-                getattr(cls, "make_simulator", None) is None:
+        if values.get("simulate") and not cls.has_simulator():
             problems.append(Problem(f"{where}.simulate", f"{cls.name} has no simulator", file))
         # (a `simulate` of the wrong type is its own problem, not a missing port)
         if ("simulate" not in invalid and not values["simulate"] and not values.get("port")

@@ -1,12 +1,15 @@
-"""Plugin discovery and the registry of instruments, algorithms and recipe steps.
+"""Plugin discovery and the registry of instruments, algorithms, controllers and recipe steps.
 
 :func:`get_registry` builds (once per process) a pluggy ``PluginManager`` for the project
-``mirrorlab``, registers the built-in plugins (``mirrorlab.instruments``, ``mirrorlab.plugins``,
-the core's own steps) and every entry point of the group ``mirrorlab``, then collects what the
-registration hooks return.
+``mirrorlab`` and registers every entry point of the group ``mirrorlab``: the built-in plugins are
+entry points of the ``mirrorlab`` distribution itself (``pyproject.toml``), third-party ones of
+their own distributions; one route for both. It then calls the registration hooks through pluggy
+(only functions marked with ``hookimpl`` count; ``tryfirst`` / ``trylast`` order the providers and
+hook wrappers wrap every plugin's registration) and records which plugin returned which class.
 
-A plugin that fails to import, fails hook validation or raises in a registration hook is
-recorded in :attr:`Registry.broken` with its error and traceback; everything else keeps working.
+A plugin that fails to import, fails hook validation, raises in a registration hook or returns a
+class of the wrong kind (an algorithm from ``mirrorlab_register_instruments``) is recorded in
+:attr:`Registry.broken` with a one-line error and its traceback; everything else keeps working.
 Two providers of one name make that name *ambiguous*: asking for it raises
 :class:`~mirrorlab.core.errors.DuplicateNameError` naming both, and ``mirrorlab plugins doctor``
 lists the conflict.
@@ -26,10 +29,15 @@ from . import hookspecs
 from .errors import DuplicateNameError, PluginError
 
 ENTRY_POINT_GROUP = "mirrorlab"
-BUILTIN_PLUGINS = ("mirrorlab.core.steps", "mirrorlab.instruments")
-#: Module whose ``builtin_plugins()`` lists further built-in plugins, each loaded on its own.
-BUILTIN_ADAPTERS = "mirrorlab.plugins"
+#: The distribution whose entry points are the built-in plugins.
+BUILTIN_DISTRIBUTION = "mirrorlab"
 KINDS = ("instrument", "algorithm", "controller", "step")
+#: Registration hook of each kind.
+HOOKS = {"instrument": "mirrorlab_register_instruments", "algorithm": "mirrorlab_register_algorithms",
+         "controller": "mirrorlab_register_controllers", "step": "mirrorlab_register_steps"}
+#: Base class each kind must subclass: kind -> (module, class name), imported when first checked.
+BASES = {"instrument": ("mirrorlab.core.devices", "Instrument"), "algorithm": ("mirrorlab.core.algorithms", "Algorithm"),
+         "controller": ("mirrorlab.core.controllers", "Controller"), "step": ("mirrorlab.core.steps", "Step")}
 _REQUIRED = ("name", "version", "description", "parameters")
 
 
@@ -38,7 +46,7 @@ class PluginInfo:
     """A plugin as discovered: where it came from and whether it loaded."""
 
     name: str
-    source: str  # "builtin" or the entry point "name = module:attr"
+    source: str  # the entry point "name = module:attr", or where an added plugin came from
     distribution: str = ""
     version: str = ""
     error: str = ""
@@ -64,22 +72,21 @@ class Registry:
     """Everything the installed plugins provide."""
 
     def __init__(self, entry_points: bool = True, builtins: bool = True) -> None:
-        """Discover the built-in plugins (unless ``builtins=False``) and the entry points (unless ``entry_points=False``)."""
+        """Discover the entry points of group ``mirrorlab``.
+
+        ``builtins=False`` skips those of the ``mirrorlab`` distribution (the built-in plugins),
+        ``entry_points=False`` those of every other distribution (third-party plugins); with both
+        off the registry is empty until :meth:`add_plugin`.
+        """
         self.pm = pluggy.PluginManager(hookspecs.PROJECT)
         self.pm.add_hookspecs(hookspecs)
         self.plugins: dict[str, PluginInfo] = {}
         self._items: dict[str, dict[str, list[Provided]]] = {k: {} for k in KINDS}
-        if builtins:
-            for module in BUILTIN_PLUGINS:
-                self._load(module, "builtin", lambda m=module: importlib.import_module(m))
-            for name, loader in importlib.import_module(BUILTIN_ADAPTERS).builtin_plugins():
-                self._load(name, "builtin", loader)
-        if entry_points:
-            for ep in md.entry_points(group=ENTRY_POINT_GROUP):
-                dist = ep.dist.name if ep.dist else ""
-                version = ep.dist.version if ep.dist else ""
-                self._load(ep.name, f"{ep.name} = {ep.value}", ep.load, dist, version)
-        self._collect()
+        for ep in md.entry_points(group=ENTRY_POINT_GROUP):
+            dist = ep.dist.name if ep.dist else ""
+            if (builtins if dist == BUILTIN_DISTRIBUTION else entry_points):
+                self._load(ep.name, f"{ep.name} = {ep.value}", ep.load, dist, ep.dist.version if ep.dist else "")
+        self._collect([name for name, info in self.plugins.items() if info.ok])
 
     # -- loading -----------------------------------------------------------------------------------
     def _load(self, name: str, source: str, loader: Any, dist: str = "", version: str = "") -> None:
@@ -95,35 +102,40 @@ class Registry:
             if self.pm.has_plugin(name):
                 self.pm.unregister(name=name)
 
-    def _collect(self) -> None:
-        for plugin_name, info in self.plugins.items():
-            if info.ok:
-                self._collect_plugin(plugin_name, info)
-
-    def _collect_plugin(self, plugin_name: str, info: PluginInfo) -> None:
-        """Call the registration hooks of one plugin; all its classes count, or none of them."""
-        hooks = {"instrument": "mirrorlab_register_instruments",
-                 "algorithm": "mirrorlab_register_algorithms",
-                 "controller": "mirrorlab_register_controllers",
-                 "step": "mirrorlab_register_steps"}
-        plugin = self.pm.get_plugin(plugin_name)
-        found: list[tuple[str, type]] = []
-        for kind, hook_name in hooks.items():
-            impl = getattr(plugin, hook_name, None)
-            if impl is None:
-                continue
+    def _collect(self, names: list[str]) -> None:
+        """Call the registration hooks of the plugins ``names``; each plugin counts whole or not at all."""
+        found: dict[str, dict[str, list[type]]] = {}
+        for name in names:
+            info = self.plugins[name]
             try:
-                classes = list(impl() or [])
-                for cls in classes:
-                    self._check_declaration(kind, cls)
-            except Exception as exc:
-                info.error = f"{hook_name} failed: {type(exc).__name__}: {exc}"
+                found[name] = {kind: self._call(kind, name) for kind in KINDS}
+            except PluginError as exc:
+                info.error = str(exc)
                 info.traceback = traceback.format_exc()
-                return
-            found += [(kind, cls) for cls in classes]
-        for kind, cls in found:
-            self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, plugin_name))
-            info.provides.setdefault(kind, []).append(cls.name)
+                self.pm.unregister(name=name)  # nothing of a broken plugin runs: no hooks, no wrappers
+        for kind in KINDS:  # providers of one name in pluggy's call order (tryfirst first)
+            for name in self._call_order(kind):
+                for cls in found.get(name, {}).get(kind, ()):
+                    self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, name))
+                    self.plugins[name].provides.setdefault(kind, []).append(cls.name)
+
+    def _call_order(self, kind: str) -> list[str]:
+        impls = getattr(self.pm.hook, HOOKS[kind]).get_hookimpls()
+        return [i.plugin_name for i in reversed(impls) if not (i.hookwrapper or i.wrapper)]
+
+    def _call(self, kind: str, name: str) -> list[type]:
+        """The classes plugin ``name`` registers for ``kind``: its hook called through pluggy, wrappers included."""
+        others = [self.pm.get_plugin(n) for n in self._call_order(kind) if n != name]
+        if len(others) == len(self._call_order(kind)):
+            return []  # no implementation of this hook in this plugin
+        caller = self.pm.subset_hook_caller(HOOKS[kind], remove_plugins=others)
+        try:
+            classes = [cls for result in caller() for cls in (result or ())]
+        except Exception as exc:
+            raise PluginError(f"plugin {name!r}: {HOOKS[kind]} failed: {type(exc).__name__}: {exc}") from exc
+        for cls in classes:
+            self._check_declaration(kind, cls, name)
+        return classes
 
     def add_plugin(self, plugin: object, name: str, source: str = "added at run time") -> PluginInfo:
         """Register one more plugin object (a module or an object with hook functions).
@@ -136,18 +148,30 @@ class Registry:
         self._load(name, source, lambda: plugin)
         info = self.plugins[name]
         if info.ok:
-            self._collect_plugin(name, info)
+            self._collect([name])
         return info
 
     @staticmethod
-    def _check_declaration(kind: str, cls: Any) -> None:
+    def _check_declaration(kind: str, cls: Any, plugin: str) -> None:
+        """One-line :class:`PluginError` naming the plugin unless ``cls`` is a complete declaration of ``kind``."""
+        hook = HOOKS[kind]
+        if not isinstance(cls, type):
+            raise PluginError(f"plugin {plugin!r}: {hook} returned {cls!r}, which is not a class")
+        module, base_name = BASES[kind]
+        base = getattr(importlib.import_module(module), base_name)
+        if not issubclass(cls, base):
+            actual = next((k for k, (m, b) in BASES.items() if issubclass(cls, getattr(importlib.import_module(m), b))),
+                          None)
+            what = f"{_a(actual)} {actual}" if actual else f"not {_a(kind)} {kind}"
+            raise PluginError(f"plugin {plugin!r}: {hook} returned {cls.__module__}.{cls.__qualname__}, which is {what}; "
+                              f"{kind}s subclass {module}.{base_name}")
         missing = [a for a in _REQUIRED if not getattr(cls, a, None) and a != "parameters"]
-        if missing or not isinstance(cls, type):
-            raise PluginError(f"{kind} {cls!r} does not declare {', '.join(missing) or 'a class'}")
+        if missing:
+            raise PluginError(f"plugin {plugin!r}: {kind} {cls.__qualname__} does not declare {', '.join(missing)}")
         from .params import ParameterSet
 
         if not isinstance(getattr(cls, "parameters", None), ParameterSet):
-            raise PluginError(f"{kind} {cls.name!r}: `parameters` must be a ParameterSet")
+            raise PluginError(f"plugin {plugin!r}: {kind} {cls.name!r}: `parameters` must be a ParameterSet")
 
     # -- queries -------------------------------------------------------------------------------------
     def names(self, kind: str) -> list[str]:
@@ -212,6 +236,10 @@ class Registry:
             except Exception as exc:
                 errors.append(f"plugin {impl.plugin_name!r} failed in {hook_name}: {type(exc).__name__}: {exc}")
         return errors
+
+
+def _a(word: str) -> str:
+    return "an" if word[0] in "aeiou" else "a"
 
 
 _registry: Registry | None = None

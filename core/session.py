@@ -354,14 +354,7 @@ class Session:
 
     def _start_simulator(self, cls: type[Instrument], settings: dict[str, Any], options: dict[str, Any],
                          label: str) -> SimulatorServer:
-        make = getattr(cls, "make_simulator", None)
-        if make is not None:
-            model = make(settings, options["seed"])
-        elif getattr(cls, "simulator", None) is not None:
-            model = cls.simulator(seed=options["seed"])
-        else:
-            raise SessionError(f"instrument plugin {cls.name!r} has no simulator; set simulate = false "
-                               "and give the port of a real device")
+        model = cls.make_simulator(settings, options["seed"])
         server = SimulatorServer(model, options["transport"]).start()
         self._simulators[label] = server
         return server

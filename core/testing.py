@@ -51,8 +51,7 @@ def simulated(instrument_class: type[Instrument], settings: dict[str, Any] | Non
     The simulator clock is FAST so modelled delays cost no wall time.
     """
     inst = instrument_class("dut", None, settings or {}, timeout)
-    make = getattr(instrument_class, "make_simulator", None)
-    model = make(inst.settings, seed) if make else instrument_class.simulator(seed=seed)
+    model = instrument_class.make_simulator(inst.settings, seed)
     with SimulatorServer(model, transport) as server:
         inst.port = server.url
         try:
@@ -93,7 +92,7 @@ class InstrumentConformance:
         cls = self.instrument_class
         for attr in ("name", "version", "description"):
             assert isinstance(getattr(cls, attr, None), str) and getattr(cls, attr), f"{cls} lacks {attr}"
-        assert cls.simulator is not None or hasattr(cls, "make_simulator"), "an instrument plugin ships a simulator"
+        assert cls.has_simulator(), "an instrument plugin ships a simulator (set `simulator` or override make_simulator)"
         for p in cls.parameters:
             assert p.help, f"parameter {p.name!r} needs help text (CLI, TUI forms)"
 

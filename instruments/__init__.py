@@ -1,20 +1,21 @@
 """Built-in instrument plugins; each sub-package is one instrument with its simulator.
 
 ``virtual_lab`` is not an instrument: it is the simulated experiment (scenes, camera, mirrors,
-renderer, ground truth) that the simulators film; its lifecycle hook stores the truth of every
-recording made on it under ``/truth/<instrument>``.
+renderer, ground truth) that the simulators film; it knows nothing of them. The film scanner's
+:mod:`~mirrorlab.instruments.film_scanner.virtual` films it, and this package's lifecycle hook
+stores the truth of every recording made on it under ``/truth/<instrument>``.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from mirrorlab.core.hookspecs import hookimpl
+from mirrorlab.core import hookimpl
 
 
 @hookimpl
 def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> None:
-    from .virtual_lab.source import record_all_truth  # imported when a recording ends, not at start-up
+    from .film_scanner.virtual import record_all_truth  # imported when a recording ends, not at start-up
 
     record_all_truth(session)
 

@@ -20,6 +20,20 @@ def pip_install_target(package: Path, target: Path) -> Path:
     return target
 
 
+def plugin_site(source: str, distribution: str, entry: str, src: Path, target: Path) -> Path:
+    """Install a one-module third-party plugin: package ``<entry>_mirrorlab`` holding ``source``,
+    distribution ``distribution``, entry point ``entry`` of group ``mirrorlab``; return the site dir."""
+    package = f"{entry}_mirrorlab"
+    (src / package).mkdir()
+    (src / package / "__init__.py").write_text(source)
+    (src / "pyproject.toml").write_text(
+        '[build-system]\nrequires = ["setuptools>=61"]\nbuild-backend = "setuptools.build_meta"\n'
+        f'[project]\nname = "{distribution}"\nversion = "1.0.0"\n'
+        f'[project.entry-points.mirrorlab]\n{entry} = "{package}"\n'
+        f'[tool.setuptools]\npackages = ["{package}"]\n')
+    return pip_install_target(src, target)
+
+
 def run_cli(*args: str, sites: tuple[Path, ...] = (), cwd: Path | None = None,
             timeout: float = 120) -> subprocess.CompletedProcess[str]:
     """Run the ``mirrorlab`` CLI in a subprocess (with extra site directories on PYTHONPATH)."""

@@ -14,8 +14,6 @@ import argparse
 import importlib
 from dataclasses import dataclass
 
-from ..registry import BUILTIN_ADAPTERS
-
 
 @dataclass(frozen=True)
 class Command:
@@ -47,5 +45,5 @@ CORE_COMMANDS = (
 
 def builtin_commands() -> list[Command]:
     """The core's commands, then those the built-in algorithm plugins declare (nothing imported)."""
-    declared = importlib.import_module(BUILTIN_ADAPTERS).CLI_COMMANDS
+    declared = importlib.import_module("mirrorlab.plugins").CLI_COMMANDS
     return [*CORE_COMMANDS, *(Command(name, help_, target) for name, (help_, target) in declared.items())]

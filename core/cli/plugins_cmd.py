@@ -32,7 +32,7 @@ def _describe(kind: str, cls: Any) -> dict[str, Any]:
     out = {"name": cls.name, "version": cls.version, "description": cls.description,
            "parameters": cls.parameters.describe()}
     if kind == "instrument":
-        out["simulator"] = getattr(cls, "simulator", None) is not None
+        out["simulator"] = cls.has_simulator()
     if kind == "step":
         out["tables"] = dict(cls.tables)
     return out
@@ -77,35 +77,46 @@ def list_plugins(args: argparse.Namespace) -> int:
     return 0
 
 
+def simulator_problem(cls: Any) -> str:
+    """Why an instrument cannot be simulated though its default settings need a device port, or ``""``."""
+    if cls.has_simulator() or not cls.needs_port(cls.parameters.defaults()):
+        return ""
+    return (f"instrument {cls.name!r} needs a port but cannot make a simulator: set `simulator` or override "
+            "`make_simulator` (recipes with simulate = true and the conformance kit need one)")
+
+
 def doctor(args: argparse.Namespace) -> int:
     reg = get_registry()
     rows = []
     for p in reg.plugins.values():
-        simulators = {}
+        simulators, problems = {}, []
         for name in p.provides.get("instrument", []):
             cls = reg.providers("instrument", name)[0].cls
-            simulators[name] = getattr(cls, "simulator", None) is not None
+            simulators[name] = cls.has_simulator()
+            problems += [m for m in [simulator_problem(cls)] if m]
         rows.append({"name": p.name, "entry_point": p.source, "distribution": p.distribution,
                      "version": p.version, "ok": p.ok, "error": p.error, "traceback": p.traceback,
-                     "provides": p.provides, "simulators": simulators})
+                     "provides": p.provides, "simulators": simulators, "problems": problems})
     conflicts = reg.conflicts()
     if args.json:
         print(json.dumps({"plugins": rows, "conflicts": conflicts}, indent=2))
     else:
         for r in rows:
-            state = "ok" if r["ok"] else "BROKEN"
+            state = "ok" if r["ok"] and not r["problems"] else "BROKEN" if not r["ok"] else "PROBLEM"
             print(f"{r['name']} [{state}]  entry point: {r['entry_point']}"
                   + (f"  ({r['distribution']} {r['version']})" if r["distribution"] else ""))
             for kind, names in r["provides"].items():
                 print(f"    {kind}s: {', '.join(names)}")
             for name, has in r["simulators"].items():
                 print(f"    simulator for {name}: {'yes' if has else 'no'}")
+            for problem in r["problems"]:
+                print(f"    problem: {problem}")
             if not r["ok"]:
                 print(f"    error: {r['error']}")
                 print("    " + r["traceback"].rstrip().replace("\n", "\n    "))
         for c in conflicts:
             print(f"CONFLICT: {c}")
-    return 1 if conflicts or any(not r["ok"] for r in rows) else 0
+    return 1 if conflicts or any(not r["ok"] or r["problems"] for r in rows) else 0
 
 
 def show(args: argparse.Namespace) -> int:

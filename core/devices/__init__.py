@@ -1,12 +1,12 @@
 """Device layers: byte transports, the line protocol, simulators and the instrument base classes."""
 
-from .instrument import Emit, Identity, Instrument, SerialInstrument, Status
+from .instrument import Emit, Identity, Instrument, Reporter, SerialInstrument, Status
 from .protocol import LineClient, Reply
-from .simulator import CommandError, Delay, LineSimulator, SimulatorServer
+from .simulator import CommandError, Delay, Lines, LineSimulator, SimulatorServer
 from .transport import PtyEndpoint, TcpEndpoint, TransportFaults, open_port
 
 __all__ = [
-    "CommandError", "Delay", "Emit", "Identity", "Instrument", "LineClient", "LineSimulator",
-    "PtyEndpoint", "Reply", "SerialInstrument", "SimulatorServer", "Status", "TcpEndpoint",
+    "CommandError", "Delay", "Emit", "Identity", "Instrument", "LineClient", "LineSimulator", "Lines",
+    "PtyEndpoint", "Reply", "Reporter", "SerialInstrument", "SimulatorServer", "Status", "TcpEndpoint",
     "TransportFaults", "open_port",
 ]

@@ -44,6 +44,7 @@ from ..errors import (
     DeviceError,
     DeviceTimeout,
     MirrorlabError,
+    PluginError,
     Problem,
     ProtocolError,
     ValidationError,
@@ -199,6 +200,32 @@ class Instrument(ABC):
     def needs_port(cls, settings: Mapping[str, Any]) -> bool:
         """Whether these settings need a ``port`` when not simulated (recipes check it)."""
         return False
+
+    @classmethod
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> LineSimulator:
+        """The device model a simulated instance with these ``settings`` talks to.
+
+        Called by :meth:`mirrorlab.core.Session.add_instrument` (``simulate=True``), recipes
+        (``simulate = true``) and the conformance kit; the session serves the model on a pty or
+        TCP socket and the driver talks to it like to the real device. ``seed`` makes its noise
+        reproducible. The default builds :attr:`simulator` (``cls.simulator(seed=seed)``);
+        override it when the model depends on the settings (the film scanner films the scene
+        or images its settings name).
+
+        Raises
+        ------
+        PluginError
+            The plugin ships no simulator.
+        """
+        if cls.simulator is None:
+            raise PluginError(f"instrument plugin {cls.name!r} has no simulator; set simulate = false "
+                              "and give the port of a real device")
+        return cls.simulator(seed=seed)
+
+    @classmethod
+    def has_simulator(cls) -> bool:
+        """Whether :meth:`make_simulator` can build a model: :attr:`simulator` is set or it is overridden."""
+        return cls.simulator is not None or cls.make_simulator.__func__ is not Instrument.make_simulator.__func__
 
     def configure(self, **changes: Any) -> dict[str, Any]:
         """Validate ``changes`` against :attr:`parameters`, apply them, return all settings."""

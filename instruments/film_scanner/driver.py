@@ -13,18 +13,26 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Emit, Identity, Reporter, SerialInstrument, Status
-from mirrorlab.core.errors import DeviceDisconnected, DeviceReplyError, ProtocolError
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.streams import StreamSpec
+from mirrorlab.core import (
+    ConfigurationError,
+    DeviceDisconnected,
+    DeviceReplyError,
+    Parameter,
+    ParameterSet,
+    ProtocolError,
+    StreamSpec,
+)
+from mirrorlab.core.devices import Emit, Identity, Reporter, SerialInstrument, Status
+from mirrorlab.instruments.virtual_lab import SCENE_NAMES
 
 from .film import PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEP_UM, STEPS_PER_LINE
 from .model import HEAD_LIMIT_LINES, MAX_LINES, FilmScannerModel
-from .sources import FrameSource, load_images, open_source, to_scan_frame
+from .sources import CameraSource, FolderSource, FrameSource, VideoSource, load_images, to_scan_frame
 from .wire import PIXELS, parse_data_line
 
 SCAN_CHUNK = 43                  # lines per SCAN command: 344 = 8 x 43, stop is checked between
@@ -32,9 +40,6 @@ FEED_S_PER_LINE = STEPS_PER_LINE * STEP_S
 HEAD_ESTIMATE_S = 8.0            # typical heading + recentring time, for the nominal frame rate
 
 Frame = tuple[float, int, np.ndarray]
-#: Scene names of ``mirrorlab.instruments.virtual_lab.SCENE_NAMES`` (a test keeps them equal; not
-#: imported here because the virtual lab imports the film module of this package).
-VIRTUAL_SCENES = ("", "rssr", "four_bar", "box", "upper_limb", "grid")
 
 
 class FilmScanner(SerialInstrument):
@@ -66,7 +71,7 @@ class FilmScanner(SerialInstrument):
                        "virtual-lab film"),
         Parameter("loop", bool, False, help="restart a folder or video at its end"),
         Parameter("binarise", bool, True, help="binarise folder/video/camera frames at `threshold`"),
-        Parameter("scene", str, "", choices=VIRTUAL_SCENES,
+        Parameter("scene", str, "", choices=("", *SCENE_NAMES),
                   help="virtual-lab scene: the frames of source = virtual, and the film of a simulated "
                        "fscan (shot at `frame_rate`); empty = none"),
         Parameter("scene_frames", int, 34, bounds=(1, 100_000),
@@ -94,7 +99,7 @@ class FilmScanner(SerialInstrument):
         if values["path"]:
             film = Film.from_images(load_images(values["path"]))
         elif values["scene"]:
-            from mirrorlab.instruments.virtual_lab.source import virtual_film
+            from .virtual import virtual_film  # renders with OpenCV: imported when used
             film = virtual_film(values["scene"], values["frame_rate"], values["scene_frames"])
         else:
             film = Film.generated(n_frames=values["scene_frames"])
@@ -312,3 +317,31 @@ def _one(data: list[str], command: str) -> str:
         raise ProtocolError(f"{command} returned {len(data)} data lines, expected 1; check the cable and "
                             "that the port is the scanner's")
     return data[0]
+
+
+def open_source(source: str, path: str, camera_index: int, *, scene: str = "", frame_rate: float = 10.0,
+                n_frames: int = 0) -> FrameSource:
+    """Create and open the frame source named by the ``source`` setting.
+
+    ``virtual`` renders frames of the virtual-lab ``scene`` (frame k at t = k / ``frame_rate``,
+    ``n_frames`` frames, 0 = endless).
+    """
+    if source in ("folder", "video") and not path:
+        raise ConfigurationError(f"source '{source}' needs the `path` setting (a "
+                                 f"{'folder of images' if source == 'folder' else 'video file'})")
+    frame_source: FrameSource
+    if source == "folder":
+        frame_source = FolderSource(Path(path))
+    elif source == "video":
+        frame_source = VideoSource(Path(path))
+    elif source == "camera":
+        frame_source = CameraSource(camera_index)
+    elif source == "virtual":
+        if not scene:
+            raise ConfigurationError(f"source 'virtual' needs the `scene` setting ({', '.join(SCENE_NAMES)})")
+        from .virtual import VirtualSource  # renders with OpenCV: imported when used
+        frame_source = VirtualSource(scene, frame_rate, n_frames)
+    else:
+        raise ValueError(f"unknown frame source {source!r}")
+    frame_source.open()
+    return frame_source

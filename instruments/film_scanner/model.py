@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-from mirrorlab.core.devices.simulator import CommandError, Delay, LineSimulator
+from mirrorlab.core.devices import CommandError, Delay, LineSimulator
 
 from .film import PITCH_MM, PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEPS_PER_LINE, Carrier, FeedFaults, LimitHit

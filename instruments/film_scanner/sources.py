@@ -13,8 +13,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import ConfigurationError, DataError, DeviceDisconnected
+from mirrorlab.core import ConfigurationError, DataError, DeviceDisconnected
+from mirrorlab.core.devices import Identity
 
 from .wire import PIXELS
 
@@ -263,32 +263,3 @@ class CameraSource(_CaptureSource):
 
     def identity(self) -> Identity:
         return Identity(self.kind, "mirrorlab", "camera", "opencv", str(self.index))
-
-
-def open_source(source: str, path: str, camera_index: int, *, scene: str = "", frame_rate: float = 10.0,
-                n_frames: int = 0) -> FrameSource:
-    """Create and open the frame source named by the ``source`` setting.
-
-    ``virtual`` renders frames of the virtual-lab ``scene`` (frame k at t = k / ``frame_rate``,
-    ``n_frames`` frames, 0 = endless).
-    """
-    if source in ("folder", "video") and not path:
-        raise ConfigurationError(f"source '{source}' needs the `path` setting (a "
-                                 f"{'folder of images' if source == 'folder' else 'video file'})")
-    frame_source: FrameSource
-    if source == "folder":
-        frame_source = FolderSource(Path(path))
-    elif source == "video":
-        frame_source = VideoSource(Path(path))
-    elif source == "camera":
-        frame_source = CameraSource(camera_index)
-    elif source == "virtual":
-        if not scene:
-            raise ConfigurationError("source 'virtual' needs the `scene` setting (rssr, four_bar, box, "
-                                     "upper_limb or grid)")
-        from mirrorlab.instruments.virtual_lab.source import VirtualSource  # the lab imports this package
-        frame_source = VirtualSource(scene, frame_rate, n_frames)
-    else:
-        raise ValueError(f"unknown frame source {source!r}")
-    frame_source.open()
-    return frame_source

@@ -8,7 +8,7 @@ comparator bits into memory).
 from __future__ import annotations
 
 import numpy as np
-from mirrorlab.core.errors import ProtocolError
+from mirrorlab.core import ProtocolError
 
 PIXELS = 512
 HEX_DIGITS = PIXELS // 4

@@ -12,9 +12,8 @@ import threading
 from typing import Any, ClassVar
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, StreamSpec
+from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
 from mirrorlab.core.devices import Emit, SerialInstrument
-from mirrorlab.core.errors import DeviceError
 
 from .models import ActuatorModel, AngleSourceModel
 

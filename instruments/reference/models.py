@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import math
 
-from mirrorlab.core.devices import LineSimulator
-from mirrorlab.core.devices.simulator import Lines
+from mirrorlab.core.devices import Lines, LineSimulator
 
 
 class _Streaming(LineSimulator):

@@ -10,7 +10,6 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
-from mirrorlab.instruments.film_scanner.film import FRAME_H_MM, FRAME_W_MM, Film, Marker
 from mirrorlab.plugins.photogrammetry import PinholeCamera
 from numpy.typing import ArrayLike, NDArray
 
@@ -126,32 +125,9 @@ class VirtualLab:
         for k in range(tt.size):
             yield float(tt[k]), self.render_truth(truth, k)
 
-    def film(self, times: ArrayLike) -> Film:
-        """A film strip of the frames at ``times`` for the FSCAN simulator.
-
-        Frames are rendered lazily (:class:`Film` with a generator); each is stretched over the
-        24 mm x 18 mm cine frame, so give the camera a 4:3 image (e.g. 2048 x 1536, the film
-        texture size) to keep the aspect. The film's marker truth (``SIM:TRUTH?``) lists every
-        visible image: ``ident = view * M + marker`` with view 0 = direct, k + 1 = mirror k.
-        """
-        tt = np.atleast_1d(np.asarray(times, dtype=float))
-        truth = self.truth(tt)
-        w, h = self.camera.image_size or (1, 1)
-        M = len(truth.labels)
-        markers: list[Marker] = []
-        for k in range(tt.size):
-            o = self.outlines(truth, k)
-            xy, views = truth.view_xy()
-            for view, m, poly in zip(o.view, o.marker, o.polygons):
-                x, y = xy[k, view + 1, m]
-                area = 0.5 * abs(np.dot(poly[:, 0], np.roll(poly[:, 1], 1)) - np.dot(poly[:, 1], np.roll(poly[:, 0], 1)))
-                markers.append(Marker(k, int((view + 1) * M + m), (x + 0.5) / w * FRAME_W_MM - FRAME_W_MM / 2,
-                                      (y + 0.5) / h * FRAME_H_MM, float(np.sqrt(area / np.pi)) / w * FRAME_W_MM))
-        return Film(generator=lambda k: self.render_truth(truth, k), n_frames=tt.size, markers=markers)
-
 
 # ----------------------------------------------------------------------------------------- presets
-#: Scene names accepted by :func:`make_lab` (and the film scanner's ``scene`` setting).
+#: Scene names accepted by :func:`make_lab`: the one list (the film scanner's ``scene`` setting uses it).
 SCENE_NAMES = ("rssr", "four_bar", "box", "upper_limb", "grid")
 
 #: Thesis RSSR experiment (photogrammetry.md §10): camera principal point F1 and mirror point G, mm.

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from mirrorlab.core import Parameter, ParameterSet
-from mirrorlab.core.controller_runtime import ControllerContext
-from mirrorlab.core.controllers import Controller
-from mirrorlab.core.streams import Block
+from mirrorlab.core import Block, Controller, ControllerContext, Parameter, ParameterSet
 
 
 class Follow(Controller):
@@ -43,3 +40,6 @@ class Follow(Controller):
         if self._last is not None and abs(value - self._last) < self.settings["min_change"]:
             return
         self._last = ctx.set("output", self.settings["parameter"], value, sample_time=float(block.times[-1]))
+
+
+CONTROLLERS = [Follow]

@@ -1,5 +1,12 @@
-"""Registers the built-in controllers."""
+"""Registration of the built-in controllers (:mod:`.controllers`). Nothing else lives here."""
 
-from .controllers import Follow
+from __future__ import annotations
 
-CONTROLLERS = [Follow]
+from mirrorlab.core import hookimpl
+
+from .controllers import CONTROLLERS
+
+
+@hookimpl
+def mirrorlab_register_controllers() -> list[type]:
+    return list(CONTROLLERS)

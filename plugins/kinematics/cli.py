@@ -20,19 +20,24 @@ from typing import Any
 
 import h5py
 import numpy as np
-from mirrorlab.core import Session
-from mirrorlab.core.algorithms import Algorithm, RunContext, execute
-from mirrorlab.core.cli.options import add_parameter_options, collected, plain
-from mirrorlab.core.cli.outputs import add_overwrite_option
-from mirrorlab.core.cli.progress import progress_bar
-from mirrorlab.core.clock import SessionClock
-from mirrorlab.core.errors import Problem, ValidationError
-from mirrorlab.core.events import EventBus
-from mirrorlab.core.params import ParameterSet
+from mirrorlab.core import (
+    Algorithm,
+    EventBus,
+    ParameterSet,
+    Problem,
+    RunContext,
+    Session,
+    SessionClock,
+    ValidationError,
+    add_overwrite_option,
+    add_parameter_options,
+    collected,
+    execute,
+    plain,
+    progress_bar,
+)
 
-from .errors import KinematicsError, KinematicsIOError
-from .io import MarkerData
-from .plugin import (
+from .algorithms import (
     UPPER_LIMB_OUTPUTS,
     AngularMomentum,
     Derivatives,
@@ -40,6 +45,8 @@ from .plugin import (
     RigidBodyMotionAlgorithm,
     UpperLimbAnglesAlgorithm,
 )
+from .errors import KinematicsError, KinematicsIOError
+from .io import MarkerData
 from .store import (
     export_markers,
     import_markers,

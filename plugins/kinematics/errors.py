@@ -8,7 +8,7 @@ concerns and says what to do about it.
 from __future__ import annotations
 
 import numpy as np
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core import AlgorithmError
 
 
 class KinematicsError(AlgorithmError):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from mirrorlab.core.errors import MirrorlabWarning
+from mirrorlab.core import MirrorlabWarning
 from numpy.typing import ArrayLike, NDArray
 
 from .c3d_reader import read_c3d_arrays

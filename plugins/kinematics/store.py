@@ -28,7 +28,7 @@ from typing import Any
 
 import h5py
 import numpy as np
-from mirrorlab.core.store import schema
+from mirrorlab.core import schema
 
 from .errors import KinematicsIOError
 from .io import MarkerData, read_c3d, read_qualisys_tsv, read_trc, write_c3d, write_csv

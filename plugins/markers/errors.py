@@ -6,7 +6,7 @@ names the frame or argument it concerns and says what to do about it.
 
 from __future__ import annotations
 
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core import AlgorithmError
 
 
 class MarkerError(AlgorithmError):

@@ -15,10 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mirrorlab.core import Session
-from mirrorlab.core.algorithms import Algorithm, execute
-from mirrorlab.core.cli.options import add_parameter_options, collected
-from mirrorlab.core.errors import Problem, ValidationError
+from mirrorlab.core import Algorithm, Problem, Session, ValidationError, add_parameter_options, collected, execute
 
 from .algorithms import FourBarAlgorithm, OptimalWallAlgorithm, SweptArea
 from .errors import MechanismError

@@ -6,7 +6,7 @@ and names the marker, group, frame or parameter concerned and what to do about i
 
 from __future__ import annotations
 
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core import AlgorithmError
 
 
 class MechanismError(AlgorithmError):

@@ -1,17 +1,22 @@
-"""Registration of the mechanism adapters: algorithms, recipe steps and the ``mirrorlab mechanisms`` CLI."""
+"""Registration of the mechanism adapters: algorithms
+(:mod:`.algorithms`) and the ``four_bar_report`` / ``wall_report`` steps (:mod:`.steps`).
+
+Nothing else lives here.
+"""
 
 from __future__ import annotations
 
-import argparse
+from mirrorlab.core import hookimpl
 
 from .algorithms import ALGORITHMS
 from .steps import STEPS
 
 
-def add_cli_commands(subparsers: argparse._SubParsersAction) -> None:
-    from .cli import add
+@hookimpl
+def mirrorlab_register_algorithms() -> list[type]:
+    return list(ALGORITHMS)
 
-    add(subparsers)
 
-
-__all__ = ["ALGORITHMS", "STEPS", "add_cli_commands"]
+@hookimpl
+def mirrorlab_register_steps() -> list[type]:
+    return list(STEPS)

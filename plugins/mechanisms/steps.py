@@ -13,9 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core.errors import AlgorithmError, Problem
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.steps import Step
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Problem, Step
 
 from .fourbar import LINK_NAMES
 from .swept import strip_area, swept_region
@@ -23,8 +21,7 @@ from .synthetic import TABLE_5_1
 from .walls import ARC_C, ARC_H, arc_wall, astroid_motion, centrodes, eq63_motion, wall_motion
 
 if TYPE_CHECKING:
-    from mirrorlab.core.registry import Registry
-    from mirrorlab.core.session import ResultData, Session
+    from mirrorlab.core import Registry, ResultData, Session
 
 __all__ = ["STEPS", "FourBarReport", "WallReport", "format_four_bar", "format_walls"]
 
@@ -75,8 +72,8 @@ class FourBarReport(Step):
     parameters = ParameterSet(
         Parameter("instrument", str, "", help="camera whose /truth/<instrument>/analytic/lengths holds the true "
                                               "lengths (the virtual lab writes it); else true_lengths"),
-        Parameter("true_lengths", str, "230, 100, 220, 133",
-                  help="true ground, input, coupler, output lengths (mm) when there is no truth in the session"),
+        Parameter("true_lengths", float, (230.0, 100.0, 220.0, 133.0), unit="mm", shape=(4,), bounds=(0.0, None),
+                  help="true ground, input, coupler, output lengths when there is no truth in the session"),
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
@@ -99,10 +96,7 @@ class FourBarReport(Step):
                                      "camera? (or leave instrument empty and give true_lengths)")
             true_vals = [float(x) for x in session.file[key][0]]
         else:
-            true_vals = [float(x) for x in values["true_lengths"].split(",")]
-        if len(true_vals) != 4:
-            raise AlgorithmError(f"true_lengths needs 4 numbers (ground, input, coupler, output), got "
-                                 f"{values['true_lengths']!r}")
+            true_vals = list(values["true_lengths"])
         true = dict(zip(LINK_NAMES, true_vals, strict=True))
         folder = _folder(session, values["figures"])
         runs, figures = [], []

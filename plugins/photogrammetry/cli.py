@@ -17,14 +17,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.algorithms import Algorithm, RunContext, execute
-from mirrorlab.core.cli.options import add_parameter_options, collected
-from mirrorlab.core.cli.outputs import add_overwrite_option
-from mirrorlab.core.cli.progress import progress_bar
-from mirrorlab.core.clock import SessionClock
-from mirrorlab.core.errors import Problem, ValidationError
-from mirrorlab.core.events import EventBus
-from mirrorlab.core.session import Session
+from mirrorlab.core import (
+    Algorithm,
+    EventBus,
+    Parameter,
+    Problem,
+    RunContext,
+    Session,
+    SessionClock,
+    ValidationError,
+    add_overwrite_option,
+    add_parameter_options,
+    collected,
+    execute,
+    progress_bar,
+)
 
 from .camera_arrays import CAMERA_KEYS, camera_kind
 from .csvio import read_columns_csv, read_marker_csv, write_points_csv
@@ -34,7 +41,7 @@ __all__ = ["add"]
 
 
 def _algorithms() -> dict[str, type[Algorithm]]:
-    from .plugin import CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror, ReconstructParallel
+    from .algorithms import CalibratePinhole, CalibratePlane, ReconstructCentral, ReconstructMirror, ReconstructParallel
 
     return {"calibrate_plane": CalibratePlane, "calibrate_pinhole": CalibratePinhole,
             "parallel": ReconstructParallel, "central": ReconstructCentral, "mirror": ReconstructMirror}
@@ -97,10 +104,11 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 
 def _vector(text: str, option: str) -> np.ndarray:
-    try:
-        return np.array([float(v) for v in text.split(",")])
-    except ValueError:
-        raise ValidationError([Problem(option, f"{text!r} is not a comma-separated list of numbers")]) from None
+    """``"1, 2, 3"`` (units allowed: ``"[1, 2, 3] m"`` in mm) as an input array; a usage error naming ``option``."""
+    value, problem = Parameter(option.lstrip("-").replace("-", "_"), float, shape=(None,)).check(text)
+    if problem:
+        raise ValidationError([Problem(option, problem)])
+    return np.array(value)
 
 
 def _params_for(args: argparse.Namespace, algorithm: type[Algorithm], others: list[type[Algorithm]]) -> dict[str, Any]:
@@ -167,8 +175,8 @@ def calibrate(args: argparse.Namespace) -> int:
     extra: dict[str, Any] = {}
     attrs: dict[str, Any] = {}
     if args.images:
+        from .calibration_io import chessboard_inputs, parse_pattern
         from .errors import InvalidArgument
-        from .plugin import chessboard_inputs, parse_pattern
 
         algorithm = algs["calibrate_pinhole"]
         if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
@@ -208,7 +216,7 @@ def calibrate(args: argparse.Namespace) -> int:
         attrs = {"points_csv": str(args.points)}
     with _session(args.session, True, "mirrorlab calibrate", args.overwrite) as s:
         if s is not None:
-            from .plugin import require_new_camera, store_calibration
+            from .calibration_io import require_new_camera, store_calibration
 
             require_new_camera(s, args.camera)
             ref = s.run(algorithm, inputs, params)
@@ -259,7 +267,7 @@ def _camera_inputs(args: argparse.Namespace, session: Session | None, algorithm:
     if args.calibration:
         if session is None:
             raise ValidationError([Problem("--calibration", "a calibration group needs SESSION; or use --camera-file")])
-        from .plugin import calibration_inputs
+        from .calibration_io import calibration_inputs
 
         return dict(calibration_inputs(session, args.calibration, algorithm))
     if args.camera_file:

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TextIO
 
 import numpy as np
-from mirrorlab.core.errors import Problem, ValidationError
+from mirrorlab.core import Problem, ValidationError
 from numpy.typing import NDArray
 
 __all__ = ["MarkerTable", "read_marker_csv", "read_columns_csv", "write_points_csv", "read_points_csv"]

@@ -9,7 +9,8 @@
   the direct images → (F, T, 2) real + virtual;
 * :mod:`.report`: errors against the session's ``/truth`` and the figures (``report`` step).
 
-The maths are pure functions; :mod:`.plugin` wraps them as algorithms and the ``report`` step.
+The maths are pure functions; :mod:`.algorithms` and :mod:`.steps` wrap them as algorithms and
+the ``report`` step; :mod:`.plugin` registers those.
 """
 
 from .epipole import EpipoleEstimate, estimate_epipole

@@ -25,14 +25,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from mirrorlab.core.store import schema
+from mirrorlab.core import schema
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 from .errors import PipelineError
 
 if TYPE_CHECKING:
-    from mirrorlab.core.session import Session
+    from mirrorlab.core import Session
 
 __all__ = ["THESIS_SYSTEMATIC_MM", "DemoReport", "DigitisingError", "angular_figure", "build_report",
            "digitising_error", "format_report", "kinematic_rms", "measured_frames", "pair_is_correct", "scan_pixels",

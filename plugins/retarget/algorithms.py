@@ -1,4 +1,5 @@
-"""Framework adapters: the ``retarget`` algorithm and the ``retarget`` recipe step.
+"""Framework adapters: the ``retarget`` algorithm (and the helpers its recipe step :mod:`.steps` and
+:mod:`.cli` share).
 
 =============  =====================================  =========================================
 name           inputs                                 outputs
@@ -20,23 +21,21 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mirrorlab.core import Algorithm, Parameter, ParameterSet, Port, RunContext
-from mirrorlab.core.errors import Problem
-from mirrorlab.core.steps import Step
 
 from .approximate import approximate, input_chain
 from .chain import Chain
-from .errors import ChainDefinitionError, SourceError
+from .errors import SourceError
 from .sources import Motion, read_bvh_chain, read_marker_chain, session_marker_chain
-from .stream import Compute, CSVSink, FilterStats, MemorySink, RetargetFilter, Sink, poses
+from .stream import Compute, FilterStats, MemorySink, RetargetFilter, Sink, poses
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Session
-    from mirrorlab.core.registry import Registry
+    pass
 
-__all__ = ["Retarget", "RetargetStep", "chain_from", "read_motion", "stream_motion", "CHAIN_PARAMETERS"]
+__all__ = ["Retarget", "chain_from", "read_motion", "stream_motion", "CHAIN_PARAMETERS"]
 
 CHAIN_PARAMETERS = (
-    Parameter("lengths", str, help="output link lengths in mm, comma-separated, e.g. '295.9,229.5'"),
+    Parameter("lengths", float, unit="mm", shape=(None,),
+              help="output link lengths, comma-separated, e.g. '295.9, 229.5'"),
     Parameter("axes", str, help="output joint axes, one string per joint, comma-separated, e.g. 'zyx,y'"),
     Parameter("method", str, "lm", choices=("lm", "paper"),
               help="lm: warm-started Levenberg-Marquardt with multistart fallback; paper: per-joint Newton sweeps"),
@@ -46,22 +45,15 @@ CHAIN_PARAMETERS = (
 )
 
 
-def _floats(text: str, name: str) -> list[float]:
-    try:
-        return [float(x) for x in str(text).replace(";", ",").split(",") if x.strip()]
-    except ValueError:
-        raise ChainDefinitionError(f"parameter {name} must be comma-separated numbers, got {text!r}") from None
-
-
 def chain_from(params: Mapping[str, Any]) -> Chain:
-    """The output :class:`Chain` of the ``lengths`` (mm) and ``axes`` parameters (base on the input root).
+    """The output :class:`Chain` of the validated ``lengths`` (mm) and ``axes`` parameters (base on the input root).
 
     Examples
     --------
-    >>> chain_from({"lengths": "300, 250", "axes": "zyx, y"}).dof
+    >>> chain_from({"lengths": (300.0, 250.0), "axes": "zyx, y"}).dof
     4
     """
-    return Chain(_floats(params["lengths"], "lengths"), [a.strip() for a in str(params["axes"]).split(",") if a.strip()])
+    return Chain(list(params["lengths"]), [a.strip() for a in str(params["axes"]).split(",") if a.strip()])
 
 
 def read_motion(path: Path, joints: list[str], scale: float = 1.0, skip: int = 0, dataset: str = "") -> Motion:
@@ -115,70 +107,3 @@ class Retarget(Algorithm):
         context.progress(1, 1, "done")
         return {"q": res.q, "f": res.f, "joints": res.joints, "residuals": res.residuals,
                 "iterations": res.iterations, "restarted": res.restarted, "pairs": res.pairs}
-
-
-class RetargetStep(Step):
-    """Recipe step ``retarget``: stream a recorded chain through the filter into ``/retarget/<name>``.
-
-    .. code-block:: toml
-
-        [[steps]]
-        action = "retarget"
-        file = "../../shared/data/bvh/01_01.bvh"   # relative to the recipe; .bvh, .c3d, .trc, .tsv, .h5
-        joints = "RightArm,RightForeArm,RightHand,RFingers"
-        scale = 56.444                             # mm per file unit
-        skip = 1                                   # drop leading frames (CMU T-pose)
-        lengths = "295.9,229.5"
-        axes = "zyx,y"
-    """
-
-    name = "retarget"
-    version = "0.1.0"
-    description = "stream a BVH / marker-file / session chain through the retargeting filter into the session"
-    parameters = ParameterSet(
-        Parameter("file", Path, help="motion file (.bvh, .c3d, .trc, .tsv) or session (.h5)"),
-        Parameter("joints", str, help="input joints root to tip, comma-separated (markers: 'A+B' = midpoint)"),
-        Parameter("dataset", str, "", help="marker set under /markers when file is a session"),
-        Parameter("scale", float, 1.0, bounds=(0.0, None), help="mm per file length unit (CMU BVH: 56.444)"),
-        Parameter("skip", int, 0, bounds=(0, None), help="leading frames to drop"),
-        Parameter("name", str, "", help="group under /retarget (default: the file's stem)"),
-        Parameter("csv", str, "", help="also write the frames to this CSV file (relative to the recipe)"),
-        *CHAIN_PARAMETERS,
-    )
-
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if problems:
-            return values, problems
-        here = Path(file).resolve().parent if file else Path.cwd()
-        if not values["file"].is_absolute():
-            values["file"] = here / values["file"]
-        if values["csv"] and not Path(values["csv"]).is_absolute():
-            values["csv"] = str(here / values["csv"])
-        if not values["file"].is_file():
-            problems.append(Problem(f"{where}.file", f"no such motion file {str(values['file'])!r}", file))
-        try:
-            chain_from(values)
-        except ChainDefinitionError as exc:
-            problems.append(Problem(f"{where}.lengths", str(exc), file))
-        return values, problems
-
-    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        motion = read_motion(Path(values["file"]), [j.strip() for j in values["joints"].split(",")], values["scale"],
-                             values["skip"], values["dataset"])
-        chain = chain_from(values)
-        sinks: list[Sink] = [CSVSink(values["csv"], chain.dof)] if values["csv"] else []
-        stats, memory = stream_motion(motion, chain, values, sinks)
-        name = values["name"] or Path(values["file"]).stem
-        out = memory.arrays()
-        session.write_group(f"retarget/{name}", {"input_joints": motion.joints, "input_time": motion.time, **out},
-                            {"source": motion.source, "joints": ",".join(motion.names), "lengths": values["lengths"],
-                             "axes": values["axes"], "method": values["method"], "rate_hz": motion.rate,
-                             "units": "joints mm, q rad, f mm2, residuals mm, time s", **stats.summary()})
-        s = stats.summary()
-        session.events.emit("info", "retarget", "retargeted",
-                            f"{motion.source}: {s['published']} frames, mean f {float(np.nanmean(out['f'])):.4g} mm², "
-                            f"compute {s['latency_mean_ms']:.2f} ms mean, {s['missed_deadlines']} missed deadlines "
-                            f"at {motion.rate:g} Hz")

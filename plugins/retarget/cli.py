@@ -13,9 +13,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from mirrorlab.core.cli.options import add_parameter_options, collected
-from mirrorlab.core.errors import Problem, ValidationError
-from mirrorlab.core.params import ParameterSet
+from mirrorlab.core import ParameterSet, Problem, ValidationError, add_parameter_options, collected
 
 from .algorithms import CHAIN_PARAMETERS, chain_from, read_motion, stream_motion
 from .errors import ChainDefinitionError

@@ -6,7 +6,7 @@ and names the link, joint, frame or file it concerns and says what to do.
 
 from __future__ import annotations
 
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core import AlgorithmError
 
 
 class RetargetError(AlgorithmError):

@@ -1,17 +1,22 @@
-"""Registration of the retarget adapters (algorithm, recipe step, CLI); nothing else lives here."""
+"""Registration of the retarget adapters: the ``retarget`` algorithm (:mod:`.algorithms`) and step
+(:mod:`.steps`).
+
+Nothing else lives here.
+"""
 
 from __future__ import annotations
 
-import argparse
+from mirrorlab.core import hookimpl
 
-from .algorithms import Retarget, RetargetStep
-
-ALGORITHMS = [Retarget]
-STEPS = [RetargetStep]
+from .algorithms import Retarget
+from .steps import RetargetStep
 
 
-def add_cli_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``mirrorlab retarget ...`` (see :mod:`.cli`)."""
-    from .cli import add
+@hookimpl
+def mirrorlab_register_algorithms() -> list[type]:
+    return [Retarget]
 
-    add(subparsers)
+
+@hookimpl
+def mirrorlab_register_steps() -> list[type]:
+    return [RetargetStep]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mirrorlab.core.errors import AlgorithmError
+from mirrorlab.core import AlgorithmError
 
 
 class TrackingError(AlgorithmError):

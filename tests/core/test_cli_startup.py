@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support import REPO, pip_install_target, run_cli
+from tests.support import REPO, plugin_site, run_cli
 
 #: Modules (and their sub-modules) that must not be imported to print the version or the top-level
 #: help: heavy libraries, any plugin sub-package or instrument, the session machinery. The light
@@ -89,22 +89,8 @@ def mirrorlab_add_cli_commands(subparsers):
 
 @pytest.fixture(scope="module")
 def hello_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    src = tmp_path_factory.mktemp("hello-src")
-    (src / "hello_mirrorlab").mkdir()
-    (src / "hello_mirrorlab" / "__init__.py").write_text(PLUGIN)
-    (src / "pyproject.toml").write_text(textwrap.dedent("""
-        [build-system]
-        requires = ["setuptools>=61"]
-        build-backend = "setuptools.build_meta"
-        [project]
-        name = "mirrorlab-hello"
-        version = "0.1.0"
-        [project.entry-points.mirrorlab]
-        hello = "hello_mirrorlab"
-        [tool.setuptools]
-        packages = ["hello_mirrorlab"]
-    """))
-    return pip_install_target(src, tmp_path_factory.mktemp("hello-site"))
+    return plugin_site(PLUGIN, "mirrorlab-hello", "hello", tmp_path_factory.mktemp("hello-src"),
+                       tmp_path_factory.mktemp("hello-site"))
 
 
 def test_third_party_commands_still_work(hello_site: Path) -> None:

@@ -36,7 +36,8 @@ def test_plugins_json_lists_builtins_and_thirdparty(acme_site: Path) -> None:
     assert {"film_scanner", "acme_thermometer"} <= set(names)
     rate = names["acme_thermometer"]["parameters"][0]
     assert rate == {"name": "rate", "type": "float", "default": 10.0, "unit": "Hz", "bounds": [1.0, 1000.0],
-                    "choices": None, "help": "samples per second", "required": False, "live": False}
+                    "choices": None, "help": "samples per second", "required": False, "live": False,
+                    "shape": None}
     assert "acme_drift_rate" in {a["name"] for a in data["algorithms"]}
 
 
@@ -60,6 +61,15 @@ def test_broken_plugin_is_reported_and_others_keep_working(acme_site: Path, brok
     assert doctor.returncode == 1
     assert "broken_import [BROKEN]" in doctor.stdout
     assert "CONFLICT: the algorithm name 'acme_drift_rate' is provided by both" in doctor.stdout
+    # a class of the wrong kind: rejected at discovery, one line naming the plugin
+    assert "wrong_kind [BROKEN]" in doctor.stdout
+    assert ("    error: plugin 'wrong_kind': mirrorlab_register_instruments returned "
+            "broken_mirrorlab.wrong_kind.NotAnInstrument, which is an algorithm; instruments subclass "
+            "mirrorlab.core.devices.Instrument\n") in doctor.stdout
+    assert "not_an_instrument" not in reg.names("instrument") and "not_an_instrument" not in reg.names("algorithm")
+    # an instrument that needs a port but cannot make a simulator
+    assert "no_simulator [PROBLEM]" in doctor.stdout and "    simulator for unsimulated: no" in doctor.stdout
+    assert "problem: instrument 'unsimulated' needs a port but cannot make a simulator" in doctor.stdout
     listing = run_cli("plugins", sites=(acme_site, broken_site))
     assert listing.returncode == 0 and "BROKEN broken_import" in listing.stdout
     assert "acme_thermometer" in listing.stdout
@@ -94,7 +104,8 @@ def test_add_plugin_at_run_time_all_or_nothing() -> None:
 
     reg = Registry(entry_points=False)
     info = reg.add_plugin(HalfBroken(), "half")
-    assert not info.ok and "step table corrupt" in info.error
+    assert not info.ok and info.error == "plugin 'half': mirrorlab_register_steps failed: RuntimeError: step table corrupt"
+    assert not reg.pm.has_plugin("half")  # its lifecycle hooks are not called either
     with pytest.raises(PluginError, match="no algorithm named 'inline_ok'"):
         reg.algorithm("inline_ok")  # nothing of a broken plugin is usable
     class Fine:
@@ -105,3 +116,134 @@ def test_add_plugin_at_run_time_all_or_nothing() -> None:
     assert reg.add_plugin(Fine(), "fine").ok and reg.algorithm("inline_ok") is Ok
     with pytest.raises(PluginError, match="already registered"):
         reg.add_plugin(Fine(), "fine")
+
+
+def _algorithm(name: str) -> type:
+    from mirrorlab.core import Algorithm
+
+    return type(name, (Algorithm,), {"name": name, "version": "1.0", "description": f"inline {name}",
+                                     "run": lambda self, inputs, params, context: {}})
+
+
+def test_registration_hooks_are_called_through_pluggy() -> None:
+    """Only marked functions count; tryfirst orders the providers; a hook wrapper wraps every plugin's list."""
+    import pluggy
+    from mirrorlab.core import hookimpl
+    from mirrorlab.core.registry import Registry
+
+    first, second, unmarked = _algorithm("shared"), _algorithm("shared"), _algorithm("unmarked")
+
+    class Unmarked:
+        def mirrorlab_register_algorithms(self):  # no @hookimpl: not a hook implementation
+            return [unmarked]
+
+    class Late:
+        @hookimpl
+        def mirrorlab_register_algorithms(self):
+            return [second]
+
+    class Early:
+        @hookimpl(tryfirst=True)
+        def mirrorlab_register_algorithms(self):
+            return [first]
+
+    seen: list[list[str]] = []
+
+    class Wrapper:  # e.g. a site policy: drop algorithms whose name starts with "x_"
+        @hookimpl(wrapper=True)
+        def mirrorlab_register_algorithms(self):
+            classes = yield
+            seen.append([c.name for result in classes for c in result])
+            return [[c for c in result if not c.name.startswith("x_")] for result in classes]
+
+    reg = Registry(entry_points=False, builtins=False)
+    assert reg.add_plugin(Unmarked(), "unmarked").ok and reg.names("algorithm") == []
+    reg.add_plugin(Wrapper(), "wrapper")
+    assert reg.add_plugin(Late(), "late").ok and reg.add_plugin(Early(), "early").ok
+    assert [p.plugin for p in reg.providers("algorithm", "shared")] == ["late", "early"]
+    hidden = _algorithm("x_hidden")
+
+    class Hidden:
+        @hookimpl
+        def mirrorlab_register_algorithms(self):
+            return [hidden, _algorithm("kept")]
+
+    assert reg.add_plugin(Hidden(), "hidden").ok
+    assert "x_hidden" not in reg.names("algorithm") and reg.provider("algorithm", "kept").name == "hidden"
+    assert seen[-1] == ["x_hidden", "kept"]
+
+    # discovery in one go: pluggy's order (tryfirst first) decides the order of the providers
+    pm_order = Registry(entry_points=False, builtins=False)
+    for plugin, name in ((Late(), "late"), (Early(), "early")):
+        pm_order.pm.register(plugin, name=name)
+        pm_order.plugins[name] = __import__("mirrorlab.core.registry", fromlist=["PluginInfo"]).PluginInfo(name, "test")
+    pm_order._collect(["late", "early"])
+    assert [p.plugin for p in pm_order.providers("algorithm", "shared")] == ["early", "late"]
+    assert isinstance(pm_order.pm, pluggy.PluginManager)
+
+
+@pytest.mark.parametrize(("hook", "returned", "message"), [
+    ("mirrorlab_register_instruments", "algorithm",
+     "plugin 'bad': mirrorlab_register_instruments returned tests.core.test_plugins.wrong, which is an algorithm; "
+     "instruments subclass mirrorlab.core.devices.Instrument"),
+    ("mirrorlab_register_steps", "plain",
+     "plugin 'bad': mirrorlab_register_steps returned tests.core.test_plugins.wrong, which is not a step; "
+     "steps subclass mirrorlab.core.steps.Step"),
+    ("mirrorlab_register_controllers", "instance",
+     "plugin 'bad': mirrorlab_register_controllers returned 3, which is not a class"),
+])
+def test_a_class_of_the_wrong_kind_is_rejected_naming_the_plugin(hook: str, returned: str, message: str) -> None:
+    from mirrorlab.core import hookimpl
+    from mirrorlab.core.registry import Registry
+
+    wrong = {"algorithm": _algorithm("wrong"), "plain": type("wrong", (), {"name": "wrong"}), "instance": 3}[returned]
+    if isinstance(wrong, type):
+        wrong.__module__, wrong.__qualname__ = __name__, "wrong"
+    plugin = type("Bad", (), {hook: hookimpl(lambda self: [wrong])})()
+    reg = Registry(entry_points=False, builtins=False)
+    info = reg.add_plugin(plugin, "bad")
+    assert info.error == message and "\n" not in info.error
+
+
+def test_registry_isolation_flags(acme_site: Path, with_sites) -> None:
+    """``builtins`` / ``entry_points`` select the mirrorlab distribution's entry points / everyone else's."""
+    from mirrorlab.core.registry import Registry
+
+    with_sites(acme_site)
+    builtin_only = Registry(entry_points=False)
+    assert "film_scanner" in builtin_only.names("instrument") and "acme_thermometer" not in builtin_only.names("instrument")
+    assert {p.distribution for p in builtin_only.plugins.values()} == {"mirrorlab"}
+    third_party = Registry(builtins=False)
+    assert third_party.names("instrument") == ["acme_thermometer"]
+    assert Registry(entry_points=False, builtins=False).plugins == {}
+
+
+def test_make_simulator_is_part_of_the_instrument_base_class() -> None:
+    from mirrorlab.core import PluginError
+    from mirrorlab.core.devices import LineSimulator, SerialInstrument
+    from mirrorlab.core.params import Parameter, ParameterSet
+    from mirrorlab.instruments.film_scanner import FilmScanner
+
+    class Model(LineSimulator):
+        pass
+
+    class Simulated(SerialInstrument):
+        name, version, description = "simulated", "1.0", "a device with a simulator class"
+        simulator = Model
+
+    class Real(SerialInstrument):
+        name, version, description = "real", "1.0", "a device without simulator"
+        parameters = ParameterSet(Parameter("port_kind", str, "usb", help="how it is attached"))
+
+    model = Simulated.make_simulator({}, seed=7)
+    assert type(model) is Model and model.seed == 7 and Simulated.has_simulator()
+    class Custom(Real):  # builds its model from the settings
+        @classmethod
+        def make_simulator(cls, settings, seed):
+            return Model(seed=seed + len(settings))
+
+    assert Custom.has_simulator() and Custom.make_simulator({"a": 1}, seed=1).seed == 2
+    assert FilmScanner.has_simulator()
+    assert not Real.has_simulator()
+    with pytest.raises(PluginError, match="instrument plugin 'real' has no simulator; set simulate = false"):
+        Real.make_simulator({}, seed=0)

@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["grid", "views", "epipole", "tracks", "report", "plugin"]
+MODULES = ["grid", "views", "epipole", "tracks", "report"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mirrorlab.core import ValidationError
 from mirrorlab.core.algorithms import execute
 from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.plugins.pairing import mirror_epipole
-from mirrorlab.plugins.pairing.plugin import PairMirror
+from mirrorlab.plugins.pairing.algorithms import PairMirror
 from mirrorlab.plugins.photogrammetry import fit_plane_calibration
 from mirrorlab.plugins.photogrammetry.camera_arrays import plane_arrays
 from mirrorlab.plugins.pipeline import (
@@ -25,7 +26,7 @@ from mirrorlab.plugins.pipeline import (
     mirror_tracks,
     split_views,
 )
-from mirrorlab.plugins.pipeline.plugin import LabSurvey, RSSRMarkers, SurveyError
+from mirrorlab.plugins.pipeline.algorithms import LabSurvey, RSSRMarkers, SurveyError
 from mirrorlab.plugins.tracking import track
 
 SIZE = (1024, 768)
@@ -166,8 +167,10 @@ def test_assign_views_mirror_image_never_direct() -> None:
 def test_lab_survey_and_errors() -> None:
     out = execute(LabSurvey, {}, {"camera_center": "1, 2, 3", "mirror_corners": "0,0,0; 2,0,0; 2,2,0; 0,2,0"})
     assert out.status == "ok" and out.outputs["mirror_point"].tolist() == [1.0, 1.0, 0.0]
-    bad = execute(LabSurvey, {}, {"camera_center": "1, 2", "mirror_corners": "0,0,0; 2,0,0; 2,2,0"})
-    assert bad.status == "failed" and "camera_center must be rows of 3 numbers" in bad.error
+    with pytest.raises(ValidationError, match=r"camera_center: expected 3 values \(float\[3\] in mm\), got 2"):
+        execute(LabSurvey, {}, {"camera_center": "1, 2", "mirror_corners": "0,0,0; 2,0,0; 2,2,0"})
+    bad = execute(LabSurvey, {}, {"camera_center": "[1, 2, 3] m", "mirror_corners": "0,0,0; 2,0,0"})
+    assert bad.status == "failed" and "mirror_corners needs at least 3 corners" in bad.error
     assert issubclass(SurveyError, ValueError)
 
 

@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mirrorlab.core import Session
+from mirrorlab.core import Session, ValidationError
 from mirrorlab.core.algorithms import execute
-from mirrorlab.plugins.kinematics.plugin import (
+from mirrorlab.plugins.kinematics.algorithms import (
     ALGORITHMS,
     Derivatives,
     KinematicsParameterError,
+    RSSRAngles,
     channel_chunks,
     derivative_kwargs,
     inertia_tensor,
-    parse_vector,
 )
 from mirrorlab.plugins.kinematics.rssr import rotate, rssr_state
 from mirrorlab.plugins.kinematics.synthetic import box_vertices, tumbling_box_markers
@@ -182,8 +182,8 @@ def test_inertia_validation():
         inertia_tensor({"Ixx": 1.0, "Iyy": -2.0, "Izz": 3.0})
     with pytest.raises(KinematicsParameterError, match="box_x"):
         inertia_tensor({"mass": 1.0, "box_x": 100.0})
-    with pytest.raises(KinematicsParameterError, match="three numbers"):
-        parse_vector("1,2", "e")
+    with pytest.raises(ValidationError, match=r"e: expected 3 values \(float\[3\]\), got 2"):
+        RSSRAngles.parameters.validate({"e": "1,2"})
 
 
 def test_rssr_angles_against_model(tmp_path):
@@ -200,9 +200,9 @@ def test_rssr_angles_against_model(tmp_path):
     assert rel(out["phi_ddot"], truth.phi_ddot) < 1e-3
     assert rel(out["model_phi_dot"], truth.phi_dot) < 1e-8
     assert rel(out["model_phi_ddot"], truth.phi_ddot) < 1e-6
-    # a wrong geometry parameter fails with a message naming it
-    status, _, err = run(tmp_path, "rssr_angles", {"time": t, "S_A": truth.S_A, "S_C": truth.S_C}, {"e": "0,0"})
-    assert status == "failed" and "parameter e" in err
+    # a wrong geometry parameter is refused before anything runs, with a message naming it
+    with pytest.raises(ValidationError, match=r"rssr_angles\.parameters\.e: expected 3 values"):
+        run(tmp_path, "rssr_angles", {"time": t, "S_A": truth.S_A, "S_C": truth.S_C}, {"e": "0,0"})
 
 
 def _unit(v):

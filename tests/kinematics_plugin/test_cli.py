@@ -69,7 +69,7 @@ def test_elbow_angles_match_opensim(session, tmp_path):
     with h5py.File(session, "r") as f:
         run = f[summary["runs"][0].split(":")[0]]
         theta3 = run["theta3"][()]
-        assert json.loads(run.attrs["parameters"])["vertical"] == "0,0,1"
+        assert json.loads(run.attrs["parameters"])["vertical"] == [0.0, 0.0, 1.0]
     lines = MOT.read_text().splitlines()
     h = next(i for i, ln in enumerate(lines) if ln.startswith("endheader"))
     cols = lines[h + 1].split(",")

@@ -1,4 +1,4 @@
-"""The Examples in the kinematics adapter modules (store, plugin, figures) run and pass."""
+"""The Examples in the kinematics adapter modules (store, algorithms, figures) run and pass."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import importlib
 import pytest
 
 
-@pytest.mark.parametrize("name", ["store", "plugin", "figures"])
+@pytest.mark.parametrize("name", ["store", "algorithms", "figures"])
 def test_module_examples(name):
     mod = importlib.import_module(f"mirrorlab.plugins.kinematics.{name}")
     res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import execute
 from mirrorlab.plugins.markers import InvalidDetectionParameter, InvalidImage, MarkerDetections, detect_markers
-from mirrorlab.plugins.markers.plugin import DetectMarkers
+from mirrorlab.plugins.markers.algorithms import DetectMarkers
 
 from tests.support import run_cli
 

@@ -108,7 +108,7 @@ def test_reconstruct_mirror_plane_calibration_with_gaps(session: Session) -> Non
     cal = session.run("calibrate_plane", {"image_xy": "/calibration/cam_src/film",
                                           "plane_xy": "/calibration/cam_src/grid",
                                           "camera_center": "/calibration/cam_src/F1"})
-    from mirrorlab.plugins.photogrammetry.plugin import calibration_inputs, store_calibration
+    from mirrorlab.plugins.photogrammetry.calibration_io import calibration_inputs, store_calibration
 
     store_calibration(session, "cam", cal)
     session.write_group("truth/markers", {"real_xy": U, "virtual_xy": V, "G": G, "n": NORMAL})
@@ -247,7 +247,7 @@ def test_mirror_error_analysis_matches_direct_sensitivity(session: Session) -> N
 def test_property_mirror_round_trip_random_scenes(tmp_path_factory, seed: int, angle: float, frames: int) -> None:
     """Random markers and mirror angles: reconstruct_mirror returns the markers, whatever is missing."""
     from mirrorlab.core.algorithms import execute
-    from mirrorlab.plugins.photogrammetry.plugin import ReconstructMirror
+    from mirrorlab.plugins.photogrammetry.algorithms import ReconstructMirror
 
     rng = np.random.default_rng(seed)
     n = np.array([np.cos(np.radians(angle)), 0.0, np.sin(np.radians(angle))])

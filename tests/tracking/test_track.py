@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from mirrorlab.core import Session
 from mirrorlab.core.algorithms import execute
 from mirrorlab.plugins.tracking import InvalidDetections, track
-from mirrorlab.plugins.tracking.plugin import Track
+from mirrorlab.plugins.tracking.algorithms import Track
 
 
 def _circles(n_frames: int, n: int, seed: int = 0) -> np.ndarray:

@@ -10,9 +10,9 @@ import numpy as np
 from mirrorlab.core import Session
 from mirrorlab.instruments.film_scanner import FilmScannerModel
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
+from mirrorlab.instruments.film_scanner.virtual import SOURCE_SIZE, virtual_film
 from mirrorlab.instruments.film_scanner.wire import decode_bits
 from mirrorlab.instruments.virtual_lab import RenderSettings, make_lab
-from mirrorlab.instruments.virtual_lab.source import SOURCE_SIZE, virtual_film
 
 
 def _polygon_centroid(p: np.ndarray) -> np.ndarray:

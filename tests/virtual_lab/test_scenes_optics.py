@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mirrorlab.instruments.film_scanner.driver import VIRTUAL_SCENES
 from mirrorlab.instruments.virtual_lab import (
     SCENE_NAMES,
     BoxScene,
@@ -161,5 +160,15 @@ def test_calibration_grids() -> None:
     assert tr.real_visible.mean() > 0.6 and not tr.virtual_xy.size
 
 
-def test_driver_scene_choices_are_the_lab_scenes() -> None:
-    assert VIRTUAL_SCENES == ("", *SCENE_NAMES)
+def test_the_lab_knows_nothing_of_the_film_scanner() -> None:
+    """One direction only: the film scanner films the lab (no import cycle, one scene list)."""
+    import subprocess
+    import sys
+
+    probe = ("import sys, mirrorlab.instruments.virtual_lab\n"
+             "print(sorted(m for m in sys.modules if m.startswith('mirrorlab.instruments.film_scanner')))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    from mirrorlab.instruments.film_scanner import FilmScanner
+
+    assert FilmScanner.parameters["scene"].choices == ("", *SCENE_NAMES)

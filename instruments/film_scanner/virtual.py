@@ -1,8 +1,12 @@
-"""The virtual lab as the film scanner's frame source and film, and its truth in the session.
+"""The film scanner on the virtual lab: its frame source and film, and the lab's truth in the session.
+
+The film scanner depends on the virtual lab, never the other way round (the lab knows nothing of
+films or scanners).
 
 * :class:`VirtualSource`: a :class:`~mirrorlab.instruments.film_scanner.sources.FrameSource` that
   renders frame ``k`` of a preset lab at scene time ``k / frame_rate`` (``source = "virtual"``).
-* :func:`virtual_film`: the film strip of a preset lab for the FSCAN simulator.
+* :func:`lab_film`: the frames of a lab at given times as a film strip; :func:`virtual_film`: the
+  film of a preset lab for the FSCAN simulator.
 * :func:`record_truth`: writes the truth of the frames an instrument recorded to
   ``/truth/<label>/``; :func:`record_all_truth` does it for every virtual-lab film scanner of a
   session, and ``mirrorlab.instruments`` calls it from the ``mirrorlab_recording_stopped`` hook.
@@ -13,17 +17,16 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Identity
-from mirrorlab.core.errors import DeviceDisconnected
-from mirrorlab.instruments.film_scanner.film import OVERSAMPLE, TEX_H, TEX_W, Film
-from mirrorlab.instruments.film_scanner.sources import FrameSource
-from mirrorlab.instruments.film_scanner.wire import PIXELS
-from numpy.typing import NDArray
+from mirrorlab.core import DeviceDisconnected
+from mirrorlab.core.devices import Identity
+from mirrorlab.instruments.virtual_lab import SCENE_NAMES, VirtualLab, make_lab, write_truth
+from numpy.typing import ArrayLike, NDArray
 
-from .lab import SCENE_NAMES, VirtualLab, make_lab
-from .truth import write_truth
+from .film import FRAME_H_MM, FRAME_W_MM, OVERSAMPLE, TEX_H, TEX_W, Film, Marker
+from .sources import FrameSource
+from .wire import PIXELS
 
-__all__ = ["FILM_EDGE_LINES", "FILM_SIZE", "SCAN_FRAME_LINES", "SOURCE_SIZE", "VirtualSource",
+__all__ = ["FILM_EDGE_LINES", "FILM_SIZE", "SCAN_FRAME_LINES", "SOURCE_SIZE", "VirtualSource", "lab_film",
            "record_all_truth", "record_truth", "scan_first_line", "scene_lab", "virtual_film"]
 
 #: Render size of the direct source (4:3, resized by the scanner to 512 x 384).
@@ -47,6 +50,30 @@ def scene_lab(scene: str, image_size: tuple[int, int]) -> VirtualLab:
     return make_lab(scene, image_size=image_size)
 
 
+def lab_film(lab: VirtualLab, times: ArrayLike) -> Film:
+    """A film strip of ``lab``'s frames at ``times`` (s) for the FSCAN simulator.
+
+    Frames are rendered lazily (:class:`Film` with a generator); each is stretched over the
+    24 mm x 18 mm cine frame, so give the camera a 4:3 image (e.g. 2048 x 1536, the film
+    texture size) to keep the aspect. The film's marker truth (``SIM:TRUTH?``) lists every
+    visible image: ``ident = view * M + marker`` with view 0 = direct, k + 1 = mirror k.
+    """
+    tt = np.atleast_1d(np.asarray(times, dtype=float))
+    truth = lab.truth(tt)
+    w, h = lab.camera.image_size or (1, 1)
+    M = len(truth.labels)
+    markers: list[Marker] = []
+    for k in range(tt.size):
+        o = lab.outlines(truth, k)
+        xy, views = truth.view_xy()
+        for view, m, poly in zip(o.view, o.marker, o.polygons):
+            x, y = xy[k, view + 1, m]
+            area = 0.5 * abs(np.dot(poly[:, 0], np.roll(poly[:, 1], 1)) - np.dot(poly[:, 1], np.roll(poly[:, 0], 1)))
+            markers.append(Marker(k, int((view + 1) * M + m), (x + 0.5) / w * FRAME_W_MM - FRAME_W_MM / 2,
+                                  (y + 0.5) / h * FRAME_H_MM, float(np.sqrt(area / np.pi)) / w * FRAME_W_MM))
+    return Film(generator=lambda k: lab.render_truth(truth, k), n_frames=tt.size, markers=markers)
+
+
 def virtual_film(scene: str, frame_rate: float, n_frames: int) -> Film:
     """A film of ``n_frames`` frames of ``scene`` shot at ``frame_rate`` (Hz), frame k at t = k / rate.
 
@@ -61,7 +88,7 @@ def virtual_film(scene: str, frame_rate: float, n_frames: int) -> Film:
     (2, 8)
     """
     lab = scene_lab(scene, FILM_SIZE)
-    film = lab.film(np.arange(n_frames) / float(frame_rate))
+    film = lab_film(lab, np.arange(n_frames) / float(frame_rate))
     edge = FILM_EDGE_LINES * OVERSAMPLE
 
     def exposed(k: int) -> NDArray[np.uint8]:

@@ -1,0 +1,47 @@
+"""The ``report`` recipe step: the session's measurements against its ``/truth``, printed, stored and plotted."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+
+if TYPE_CHECKING:
+    from mirrorlab.core import Registry, Session
+
+
+class Report(Step):
+    """``action = "report"``: measured vs ``/truth`` summary, printed and stored; PNG figures."""
+
+    name = "report"
+    version = "1.0.0"
+    description = "compare the reconstruction and kinematics with /truth; print the summary; save figures"
+    parameters = ParameterSet(
+        Parameter("instrument", str, help="label of the recorded RSSR camera (its /truth/<label>)"),
+        Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures next to the file)"),
+    )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        values, problems = cls.parameters.problems(table, where, file)
+        if not problems and instruments and values["instrument"] not in instruments:
+            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
+                                    f"it has: {', '.join(instruments)}", file))
+        return values, problems
+
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
+        from .report import build_report, format_report, write_figures
+
+        session.events.progress(self.name, 0, 2, "comparing with truth")
+        report = build_report(session, values["instrument"])
+        folder = values["figures"] or str(session.path.with_name(session.path.stem + "-figures"))
+        session.events.progress(self.name, 1, 2, "figures")
+        report.figures = write_figures(report, folder)
+        report.store(session)
+        session.events.progress(self.name, 2, 2, "done")
+        print(format_report(report), flush=True)
+
+
+STEPS = [Report]
