@@ -22,8 +22,9 @@ def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> Non
 @hookimpl
 def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
+    from .mirror_gimbal import MirrorGimbal
 
-    return [FilmScanner]
+    return [FilmScanner, MirrorGimbal]
 
 
 __all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

@@ -35,7 +35,7 @@ import pytest
 
 from tests.support import REPO, SHARED_DATA, THIRDPARTY
 
-DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), *sorted((REPO / "docs").glob("instruments/*.md"))]
 DEMO_COMMAND = "mirrorlab demo --out demo.h5"
 FENCE = re.compile(r"^```(\w*)\s*$")
 FILE_HEADER = re.compile(r"^# (?P<path>[\w.-]+(?:/[\w.-]+)*\.(?:py|toml))(?: \(continued\))?$")

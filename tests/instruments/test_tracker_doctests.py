@@ -1,0 +1,23 @@
+"""The Examples in the tracker and gimbal modules' docstrings run and pass."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = [
+    "mirrorlab.instruments.line_tracker.sensor",
+    "mirrorlab.instruments.line_tracker.view",
+    "mirrorlab.instruments.virtual_lab.world",
+    "mirrorlab.instruments.mirror_gimbal.dynamics",
+    "mirrorlab.instruments.mirror_gimbal.driver",
+    "mirrorlab.instruments.mirror_gimbal.experiments",
+]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_module_examples(name: str) -> None:
+    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
