@@ -14,6 +14,7 @@ MODULES = [
     "mirrorlab.instruments.mirror_gimbal.dynamics",
     "mirrorlab.instruments.mirror_gimbal.driver",
     "mirrorlab.instruments.mirror_gimbal.experiments",
+    "mirrorlab.instruments.ultrasonic_tracker.acoustics",
 ]
 
 
