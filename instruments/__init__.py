@@ -23,8 +23,9 @@ def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> Non
 def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
     from .mirror_gimbal import MirrorGimbal
+    from .ultrasonic_tracker import UltrasonicTracker
 
-    return [FilmScanner, MirrorGimbal]
+    return [FilmScanner, MirrorGimbal, UltrasonicTracker]
 
 
 __all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

@@ -15,6 +15,10 @@ MODULES = [
     "mirrorlab.instruments.mirror_gimbal.driver",
     "mirrorlab.instruments.mirror_gimbal.experiments",
     "mirrorlab.instruments.ultrasonic_tracker.acoustics",
+    "mirrorlab.instruments.ultrasonic_tracker.echoes",
+    "mirrorlab.instruments.ultrasonic_tracker.search",
+    "mirrorlab.instruments.ultrasonic_tracker.experiments",
+    "mirrorlab.instruments.ultrasonic_tracker.driver",
 ]
 
 

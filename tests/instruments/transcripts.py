@@ -30,18 +30,22 @@ def transcripts(doc: str) -> list[list[str]]:
 
 
 def replay_on_model(model: LineSimulator, lines: list[str]) -> None:
-    """Run every ``>`` command on ``model`` and assert its reply lines are exactly the ``<`` lines."""
+    """Run every ``>`` command on ``model`` and assert its reply lines are exactly the ``<`` lines.
+
+    After ``… N ms`` the model advances and the ``<`` lines that follow are the stream lines it sent
+    meanwhile (none if none follow).
+    """
     expected: list[str] = []
-    command = None
+    command = None                                # None: the lines after a wait are stream lines
 
     def check() -> None:
-        if command is not None:
-            got = model.execute(command)
-            assert got == expected, f"{command!r}: got {got}, transcript says {expected}"
+        got = model.execute(command) if command is not None else model.stream_lines()
+        assert got == expected, f"{command or 'stream'!r}: got {got}, transcript says {expected}"
 
-    for line in lines:
+    for n, line in enumerate(lines):
         if line.startswith("> "):
-            check()
+            if n:
+                check()
             command, expected = line[2:], []
         elif line.startswith("< "):
             expected.append(line[2:])
