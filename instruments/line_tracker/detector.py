@@ -88,6 +88,8 @@ class OpticalDetector:
         if index is None:
             error = ("E30", "no mark") if n == 0 else ("E31", "multiple: runs tie for the widest")
             self.mark = Mark(ms, 0.0, 0, self.threshold, n, error)
+            if self.auto == "ON" and n == 0:        # d = 0 < d_ref: lower the threshold (Step 4)
+                self.threshold = adapt_threshold(self.threshold, 0, self.d_ref, self.auto_step)
             return self.mark
         e1, e2 = self.runs[index]
         m, d = mark_of_run(self.runs[index])

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mirrorlab.instruments.virtual_lab.world import TrackingWorld, axis_angles
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .sensor import FIELD_ACROSS, pixel_angles, sphere_projection
 
@@ -42,7 +42,8 @@ class OpticalFaults:
         ``(separation rad, ratio)``: the target seen as two peaks of its own size (legs apart),
         ``separation`` apart, the second's radiance times ``ratio``.
     range_m
-        Target moved along its direction to this range (m): size ~ 1/range, level ~ 1/range^2.
+        The target's level as at this range (m) from the lamp and detector instead of 1 m:
+        level times ``1 / range_m^2``, its size unchanged (threshold loss, §3.5).
     sidelight
         Lighting gradient across the target (run wider on the lit side).
     defocus_px
@@ -58,6 +59,62 @@ class OpticalFaults:
     sidelight: float = 0.0
     defocus_px: float = 0.0
     saturate: bool = False
+
+
+#: The optical faults of §3.5 and their arguments (``SIM:FAULT <name> <args>``).
+OPTICAL_FAULTS: dict[str, tuple[str, ...]] = {
+    "BACKGROUND": ("profile_id", "gain"),
+    "MULTI": ("n",),
+    "TWOPEAK": ("separation_deg", "ratio"),
+    "RANGE": ("m",),
+    "SIDELIGHT": ("gradient",),
+    "DEFOCUS": ("px",),
+    "SATURATE": (),
+    "TIMINGJITTER": ("ms",),
+}
+
+
+def check_optical_fault(name: str, values: list[str]) -> tuple[str, str] | None:
+    """The ``(code, text)`` error for ``SIM:FAULT <name> <values>``, ``None`` if valid.
+
+    Examples
+    --------
+    >>> check_optical_fault("TWOPEAK", ["12", "0.8"]) is None, check_optical_fault("BACKGROUND", ["9", "1"])
+    (True, ('E03', 'background profile 9 unknown; use one of (1, 2, 3)'))
+    """
+    names = OPTICAL_FAULTS[name]
+    if len(values) != len(names):
+        return "E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}"
+    try:
+        numbers = [float(v) for v in values]
+    except ValueError:
+        return "E02", f"{name}: not a number in {' '.join(values)}"
+    if any(x < 0 for x in numbers):
+        return "E03", f"{name} values must not be negative"
+    if name == "BACKGROUND" and int(numbers[0]) not in BACKGROUND_IDS:
+        return "E03", f"background profile {values[0]} unknown; use one of {BACKGROUND_IDS}"
+    return None
+
+
+def optical_faults(faults: dict[str, list[str]]) -> OpticalFaults:
+    """The :class:`OpticalFaults` among a simulator's active ``SIM:FAULT`` values.
+
+    Examples
+    --------
+    >>> optical_faults({"TWOPEAK": ["12", "0.8"], "SATURATE": []}).saturate
+    True
+    """
+    def value(name: str, default: float = 0.0) -> float:
+        v = faults.get(name)
+        return float(v[0]) if v else default
+
+    bg, tp = faults.get("BACKGROUND"), faults.get("TWOPEAK")
+    return OpticalFaults(
+        background=(int(float(bg[0])), float(bg[1])) if bg else None,
+        multi=int(value("MULTI")),
+        twopeak=(math.radians(float(tp[0])), float(tp[1])) if tp else None,
+        range_m=value("RANGE"), sidelight=value("SIDELIGHT"), defocus_px=value("DEFOCUS"),
+        saturate="SATURATE" in faults)
 
 
 def background_profile(profile_id: int, world_angle: FloatArray) -> FloatArray:
@@ -78,7 +135,8 @@ def background_profile(profile_id: int, world_angle: FloatArray) -> FloatArray:
 
 
 def detector_projection(world: TrackingWorld, t: float, axis: str, angle: float,
-                        faults: OpticalFaults = OpticalFaults(), parallax_mm: float = 0.0) -> FloatArray:
+                        faults: OpticalFaults = OpticalFaults(), parallax_mm: float = 0.0,
+                        eye: ArrayLike | None = None, reference: ArrayLike | None = None) -> FloatArray:
     """Summed radiance per pixel (rad) of the detector of gimbal ``axis`` (``"H"``/``"V"``) at ``angle``.
 
     The ``H`` detector's sensor lies along the azimuth (it sums over elevation), the ``V``
@@ -99,9 +157,13 @@ def detector_projection(world: TrackingWorld, t: float, axis: str, angle: float,
         Optical faults.
     parallax_mm
         Detector offset from the mirror point along the horizontal in-plane axis, mm.
+    eye, reference
+        A detector elsewhere: its position (mm) and the direction its ``angle`` is measured from
+        (default: the mirror point and the camera direction, as on the gimbal).
     """
-    eye = np.asarray(world.mirror_centre, dtype=float) + np.array([parallax_mm, 0.0, 0.0])
-    c = world.camera_direction
+    base = np.asarray(world.mirror_centre if eye is None else eye, dtype=float)
+    eye = base + np.array([parallax_mm, 0.0, 0.0])
+    c = world.camera_direction if reference is None else np.asarray(reference, dtype=float)
     centres, halves, radiances = [], [], []
     for k, sphere in enumerate(world.spheres):
         p = sphere.path.position(t)
@@ -109,8 +171,7 @@ def detector_projection(world: TrackingWorld, t: float, axis: str, angle: float,
         distance = float(np.linalg.norm(u))
         level = sphere.brightness * world.lamp_factor(p)
         if k == 0 and faults.range_m > 0:
-            level *= (distance / (1000.0 * faults.range_m)) ** 2
-            distance = 1000.0 * faults.range_m
+            level /= faults.range_m ** 2
         h, v = axis_angles(u, c)
         along, across = (float(h), float(v)) if axis == "H" else (float(v), float(h))
         if abs(across) > FIELD_ACROSS / 2:

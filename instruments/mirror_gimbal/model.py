@@ -20,7 +20,13 @@ import numpy as np
 from mirrorlab.core.devices.simulator import CommandError, LineSimulator
 from mirrorlab.instruments.line_tracker.detector import OpticalDetector
 from mirrorlab.instruments.line_tracker.sensor import video_signal
-from mirrorlab.instruments.line_tracker.view import BACKGROUND_IDS, SIGNAL_GAIN, OpticalFaults, detector_projection
+from mirrorlab.instruments.line_tracker.view import (
+    OPTICAL_FAULTS,
+    SIGNAL_GAIN,
+    check_optical_fault,
+    detector_projection,
+    optical_faults,
+)
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     Sphere,
@@ -50,14 +56,7 @@ FAULTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "COMPLIANCE": (("axis", "Nm/rad"), True),
     "GEAR": (("axis", "ratio_error"), True),
     "PARALLAX": (("mm",), False),
-    "BACKGROUND": (("profile_id", "gain"), False),
-    "MULTI": (("n",), False),
-    "TWOPEAK": (("separation_deg", "ratio"), False),
-    "RANGE": (("m",), False),
-    "SIDELIGHT": (("gradient",), False),
-    "DEFOCUS": (("px",), False),
-    "SATURATE": ((), False),
-    "TIMINGJITTER": (("ms",), False),
+    **{name: (args, False) for name, args in OPTICAL_FAULTS.items()},
 }
 
 
@@ -148,7 +147,11 @@ class MirrorGimbalModel(LineSimulator):
         return tuple(FAULTS)
 
     def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
-        if args and args[0].upper() in FAULTS:
+        if args and args[0].upper() in OPTICAL_FAULTS:
+            problem = check_optical_fault(args[0].upper(), args[1:])
+            if problem:
+                raise CommandError(*problem)
+        elif args and args[0].upper() in FAULTS:
             name = args[0].upper()
             names, per_axis = FAULTS[name]
             if len(args) - 1 != len(names):
@@ -160,8 +163,6 @@ class MirrorGimbalModel(LineSimulator):
                 self.number(text, -1e6, 1e6, integer=False)
                 if what in ("factor", "n", "ms", "m", "px", "deg") and float(text) < 0:
                     raise CommandError("E03", f"{name} {what} must not be negative")
-            if name == "BACKGROUND" and int(float(values[0])) not in BACKGROUND_IDS:
-                raise CommandError("E03", f"background profile {values[0]} unknown; use one of {BACKGROUND_IDS}")
             key = f"{name} {values[0]}" if per_axis else name
             self.faults[key] = values[1:] if per_axis else values
             self._apply_mechanical_faults()
@@ -184,17 +185,6 @@ class MirrorGimbalModel(LineSimulator):
                         detector_ratio=p.detector_ratio * (1.0 + self._axis_fault("GEAR", a, 0.0)))
             axis.params = p
 
-    def _optical_faults(self) -> OpticalFaults:
-        f = self.fault_value
-        bg = self.faults.get("BACKGROUND")
-        tp = self.faults.get("TWOPEAK")
-        return OpticalFaults(
-            background=(int(float(bg[0])), float(bg[1])) if bg else None,
-            multi=int(f("MULTI")),
-            twopeak=(math.radians(float(tp[0])), float(tp[1])) if tp else None,
-            range_m=f("RANGE"), sidelight=f("SIDELIGHT"), defocus_px=f("DEFOCUS"),
-            saturate="SATURATE" in self.faults)
-
     # -- simulation --------------------------------------------------------------------------------
     @property
     def period_s(self) -> float:
@@ -215,7 +205,7 @@ class MirrorGimbalModel(LineSimulator):
 
     def detector_signal(self, axis: Axis, t: float) -> np.ndarray:
         """The video signal (counts) of ``axis``'s detector at world time ``t`` (s)."""
-        faults = self._optical_faults()
+        faults = optical_faults(self.faults)
         proj = detector_projection(self.world, t, axis.name, axis.state.detector_angle(axis.params), faults,
                                    self.fault_value("PARALLAX"))
         gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)

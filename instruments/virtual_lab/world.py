@@ -22,7 +22,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class Path:
-    """A point that stands still until ``start_s``, then moves on a line or a horizontal circle.
+    """A point that stands still until ``start_s``, then moves on a line or a circle.
 
     Parameters
     ----------
@@ -38,12 +38,17 @@ class Path:
         Angle of the point on the circle at ``start_s``, rad about ``+y`` from ``+z``.
     start_s
         Time the motion starts, s.
+    vertical
+        The circle lies in the vertical ``x``-``y`` plane (a turntable facing ``+z``), its angle
+        measured from ``+y`` toward ``+x``; otherwise it is horizontal, about ``+y``.
 
     Examples
     --------
     >>> p = Path((0.0, 0.0, 0.0), radius=1000.0, rate=math.pi / 2)
     >>> np.round(p.position(1.0), 6).tolist()
     [1000.0, 0.0, 0.0]
+    >>> (np.round(Path((0.0, 0.0, 1000.0), radius=160.0, rate=1.0, vertical=True).position(0.0), 6) + 0.0).tolist()
+    [0.0, 160.0, 1000.0]
     """
 
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -52,6 +57,7 @@ class Path:
     rate: float = 0.0
     phase: float = 0.0
     start_s: float = 0.0
+    vertical: bool = False
 
     def position(self, t: float) -> FloatArray:
         """Position at time ``t`` (s), mm ``(3,)``."""
@@ -60,6 +66,8 @@ class Path:
         if self.radius == 0.0:
             return o + dt * np.asarray(self.velocity, dtype=float)
         a = self.phase + self.rate * dt
+        if self.vertical:
+            return o + self.radius * np.array([math.sin(a), math.cos(a), 0.0])
         return o + self.radius * np.array([math.sin(a), 0.0, math.cos(a)])
 
 
