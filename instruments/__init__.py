@@ -23,9 +23,12 @@ def mirrorlab_recording_stopped(session: Any, statistics: dict[str, Any]) -> Non
 @hookimpl
 def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
+    from .line_tracker import LineTracker
+    from .mirror_gimbal import MirrorGimbal
     from .reference import Actuator, AngleSource
+    from .ultrasonic_tracker import UltrasonicTracker
 
-    return [FilmScanner, AngleSource, Actuator]
+    return [FilmScanner, LineTracker, MirrorGimbal, UltrasonicTracker, AngleSource, Actuator]
 
 
 __all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

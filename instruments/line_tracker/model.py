@@ -1,0 +1,177 @@
+"""``LineTrackerModel``: the simulated optical line-sensor direction detector (``kind = OLDT``, §3).
+
+One :class:`~.detector.OpticalDetector` looking from ``mount`` along ``forward`` at a
+:class:`TrackingWorld` (constructor argument, shareable). Every scan (``512 / clock`` s, 78.8 ms at
+6.5 kHz) it sums the scene over the 49 deg across the sensor (:mod:`.view`), exposes, blurs, adds
+noise, saturates (:mod:`.sensor`), binarises and picks a run; commands answer from the last scan.
+
+Default world: the turntable of §3.4 - a 150 mm disc on a 160 mm radius turning in the plane
+facing the detector 1 m away, 1.84 s per revolution, one lamp 2 m to the side (-x: the
+low-pixel side is lit, as in Fig. 4.34).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+from mirrorlab.core.devices.simulator import CommandError, LineSimulator
+from mirrorlab.instruments.virtual_lab.world import Path, Sphere, TrackingWorld, axis_angles
+
+from .detector import OpticalDetector
+from .sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
+from .view import OPTICAL_FAULTS, SIGNAL_GAIN, check_optical_fault, detector_projection, optical_faults
+
+Lines = Iterator[str]
+BLUR_PX = 1.5                    # deliberate defocus (§3.2), px
+NOISE_COUNTS = 1.0               # read noise, counts
+TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
+DISC_RADIUS = 75.0               # the 150 mm disc, mm
+DISC_BRIGHTNESS = 0.35           # its reflectance so the 6.5 kHz exposure peaks near 190 counts (a choice)
+
+
+def turntable_world(radius: float = 160.0, period: float = 1.84, range_mm: float = 1000.0,
+                    start_s: float = 0.0) -> TrackingWorld:
+    """The §3.4 turntable: a disc circling ``radius`` mm every ``period`` s, ``range_mm`` ahead of ``+z``.
+
+    Examples
+    --------
+    >>> w = turntable_world()
+    >>> np.round(w.target_position(1.84 / 4), 3).tolist()      # a quarter turn: 160 mm to the side
+    [160.0, 0.0, 1000.0]
+    """
+    path = Path((0.0, 0.0, range_mm), radius=radius, rate=2 * math.pi / period, start_s=start_s, vertical=True)
+    return TrackingWorld((Sphere(path, DISC_RADIUS, DISC_BRIGHTNESS),), mirror_centre=(0.0, 0.0, 0.0),
+                         camera=(0.0, 0.0, 6000.0), lamp=(-2000.0, 0.0, range_mm))
+
+
+class LineTrackerModel(LineSimulator):
+    """Simulated OLDT detector.
+
+    Parameters
+    ----------
+    world
+        The scene (default :func:`turntable_world`). Shareable between simulators.
+    seed
+        Seed of the simulator's random generator.
+    mount, forward
+        Detector position (mm) and optical axis (unit vector); the sensor lies horizontal.
+    """
+
+    kind = "OLDT"
+    model = "OLDT-512"
+    firmware = "1.0"
+    serial_number = "SIM0004"
+
+    def __init__(self, world: TrackingWorld | None = None, seed: int = 0,
+                 mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
+        self.world = world if world is not None else turntable_world()
+        self.mount = np.asarray(mount, dtype=float)
+        self.forward = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
+        self.np_rng = np.random.default_rng(seed)
+        self.detector = OpticalDetector("M")
+        self.pending: list[str] = []
+        self.next_sample_ms = 0.0
+        super().__init__(seed)
+
+    def reset(self) -> None:
+        """Power-on: the detector's defaults, streams off."""
+        super().reset()
+        if hasattr(self, "detector"):
+            self.detector.reset()
+            self.pending = []
+
+    @property
+    def streaming(self) -> bool:
+        return self.detector.streaming or bool(self.pending)
+
+    @streaming.setter
+    def streaming(self, on: bool) -> None:
+        if hasattr(self, "detector"):
+            self.detector.streaming = on
+
+    def stream_lines(self) -> list[str]:
+        lines, self.pending = self.pending, []
+        return lines
+
+    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
+        yield from super().cmd_SIM_SEED(args)
+        self.np_rng = np.random.default_rng(self.seed)
+
+    def fault_names(self) -> tuple[str, ...]:
+        return tuple(OPTICAL_FAULTS)
+
+    def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
+        if args and args[0].upper() in OPTICAL_FAULTS:
+            problem = check_optical_fault(args[0].upper(), args[1:])
+            if problem:
+                raise CommandError(*problem)
+        yield from super().cmd_SIM_FAULT(args)
+
+    # -- simulation --------------------------------------------------------------------------------
+    def handle(self, line: str) -> Lines:
+        words = line.split()
+        if words and hasattr(self.detector, self.handler_name(words[0])):
+            return self.detector.handle(words)
+        return super().handle(line)
+
+    def signal(self, t: float) -> np.ndarray:
+        """Video signal (counts) of a scan at world time ``t`` (s)."""
+        faults = optical_faults(self.faults)
+        proj = detector_projection(self.world, t, "H", 0.0, faults, eye=self.mount, reference=self.forward)
+        gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)
+        return video_signal(proj, self.detector.clock_hz, gain, math.hypot(BLUR_PX, faults.defocus_px),
+                            NOISE_COUNTS, self.np_rng)
+
+    def advance(self, seconds: float) -> None:
+        """Advance the clock, scanning every ``512 / clock`` s (plus ``TIMINGJITTER``)."""
+        super().advance(seconds)
+        while self.next_sample_ms <= self.clock_ms:
+            t = self.next_sample_ms / 1000.0
+            self.detector.sample(self.signal(t), int(round(t * 1000.0)))
+            line = self.detector.stream_line()
+            if line:
+                self.pending.append(line)
+            jitter = self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
+            self.next_sample_ms += max(1e-3, self.detector.period_s + jitter) * 1000.0
+
+    # -- scenarios and truth -------------------------------------------------------------------------
+    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+        """``SIM:LOAD TURNTABLE <radius mm> <period s> <range mm>`` | ``STILL <deg> <range mm>``
+        | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (world mm, mm/s): replace the target."""
+        usage = "SIM:LOAD TURNTABLE <radius> <period_s> <range> | STILL <deg> <range> | LINE <x y z vx vy vz>"
+        if not args:
+            raise CommandError("E02", f"usage: {usage}")
+        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
+        t0 = self.clock_ms / 1000.0
+        if kind == "TURNTABLE" and len(values) == 3 and values[1] > 0:
+            self.world = turntable_world(values[0], values[1], values[2], start_s=t0)
+            yield "OK"
+            return
+        if kind == "STILL" and len(values) == 2:
+            a = math.radians(values[0])
+            path = Path(tuple(self.mount + values[1] * np.array([math.sin(a), 0.0, math.cos(a)])))
+        elif kind == "LINE" and len(values) == 6:
+            path = Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
+        else:
+            raise CommandError("E02", f"usage: {usage}")
+        target = self.world.spheres[0]
+        self.world = TrackingWorld((Sphere(path, target.radius, target.brightness), *self.world.spheres[1:]),
+                                   self.world.mirror_centre, self.world.camera, self.world.lamp,
+                                   self.world.mirror_size)
+        yield "OK"
+
+    def truth_lines(self) -> list[str]:
+        """``TIME <ms>``, ``TARGET <deg> <px>`` (true centre direction along the sensor and its pixel
+        coordinate), ``SIZE <px>`` (true image diameter) and ``FAULT`` lines."""
+        t = self.clock_ms / 1000.0
+        v = self.world.target_position(t) - self.mount
+        along, _ = axis_angles(v, self.forward)
+        half = math.asin(min(1.0, self.world.spheres[0].radius / float(np.linalg.norm(v))))
+        size = (math.tan(float(along) + half) - math.tan(float(along) - half)) * FOCAL_MM / PITCH_MM
+        return [f"TIME {int(self.clock_ms)}",
+                f"TARGET {math.degrees(float(along)):.4f} {float(angle_to_pixel(along)):.3f}",
+                f"SIZE {size:.2f}",
+                *[f"FAULT {n} {' '.join(v) or '-'}" for n, v in sorted(self.faults.items())]]

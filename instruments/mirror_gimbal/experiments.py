@@ -1,0 +1,59 @@
+"""Experiments on the simulated gimbal (``instruments.md`` §4.3, §5): the tracking-rate limit.
+
+A target circles the mirror at constant range, starting from rest on the detector's axis; the
+``H`` axis tracks it (``TRACK``). The target is *lost* when the gimbal reports ``E40``. The limit
+is the smallest circling rate that is lost, found by bisection.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .dynamics import AxisParams
+from .model import MirrorGimbalModel
+
+
+def loses_target(rate: float, params: AxisParams | None = None, seed: int = 0, range_mm: float = 3000.0,
+                 sweep: float = math.radians(60.0), faults: tuple[str, ...] = ()) -> bool:
+    """Whether tracking a target circling at ``rate`` (rad/s of detector angle) fails (``E40``).
+
+    The target starts at ``-sweep/2`` from the camera direction, still for 1 s (the loop settles),
+    then circles through ``sweep`` (rad) at ``range_mm``. ``faults`` are ``SIM:FAULT`` argument
+    strings (``"BACKLASH H 0"``).
+
+    Examples
+    --------
+    >>> loses_target(math.radians(5.0)), loses_target(math.radians(40.0))
+    (False, True)
+    """
+    model = MirrorGimbalModel(seed=seed, params=params)
+    for fault in faults:
+        reply = model.execute(f"SIM:FAULT {fault}")
+        if reply != ["OK"]:
+            raise ValueError(f"SIM:FAULT {fault}: {reply[-1]}")
+    model.execute(f"SIM:LOAD CIRCLE {-math.degrees(sweep) / 2:.6f} {math.degrees(rate):.6f} {range_mm:.3f} 1.0")
+    model.execute("MODE H TRACK")
+    end = 1.0 + sweep / rate
+    while model.clock_ms / 1000.0 < end:
+        model.advance(0.25)
+        if "LOST_H" in model.flags:
+            return True
+    return False
+
+
+def tracking_limit(params: AxisParams | None = None, seed: int = 0, lo: float = math.radians(2.0),
+                   hi: float = math.radians(60.0), tol: float = math.radians(0.25),
+                   faults: tuple[str, ...] = ()) -> float:
+    """Smallest circling rate (rad/s) at which the target is lost, to within ``tol`` (bisection).
+
+    Assumes tracking holds at ``lo`` and fails at ``hi``; raises ``ValueError`` otherwise.
+    """
+    if loses_target(lo, params, seed, faults=faults) or not loses_target(hi, params, seed, faults=faults):
+        raise ValueError(f"tracking limit not within {math.degrees(lo):g}..{math.degrees(hi):g} deg/s")
+    while hi - lo > tol:
+        mid = (lo + hi) / 2
+        if loses_target(mid, params, seed, faults=faults):
+            hi = mid
+        else:
+            lo = mid
+    return (lo + hi) / 2

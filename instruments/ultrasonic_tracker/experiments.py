@@ -1,0 +1,110 @@
+"""Experiments on the simulated ultrasonic tracker (``instruments.md`` §2.6, §5).
+
+* :func:`search_path`: the static search from an offset (Fig. 4.19: 12 deg off axis).
+* :func:`loses_target` / :func:`tracking_limit`: a target circling the tracker at constant range
+  through 76 deg (nearly the +-40 deg platform range) is lost when it leaves the main lobe
+  (pointing error above 15 deg, §2.6) or the tracker reports it lost (flag ``L``); the limit is
+  the smallest rate that is lost (bisection). A target slightly faster than the search's
+  ``h0 / cycle`` falls behind only slowly, so within the finite sweep this limit lies a little
+  above that theoretical bound.
+* :func:`cycle_times`: the modelled duration of each search cycle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .model import DEFAULT_SERVO, Servo, UltrasonicTrackerModel
+
+MAIN_LOBE = math.radians(15.0)
+
+
+def _pointing(model: UltrasonicTrackerModel) -> tuple[np.ndarray, float]:
+    lines = {l.split()[1]: l.split()[2:] for l in model.execute("SIM:TRUTH?")[:-1]}
+    return np.radians([float(x) for x in lines["PLATFORM"]]), math.radians(float(lines["ERROR"][0]))
+
+
+def search_path(offset: tuple[float, float] = (0.0, math.radians(12.0)), cycles: int = 25, seed: int = 0,
+                range_mm: float = 1000.0) -> np.ndarray:
+    """Platform angles ``(cycles + 1, 2)`` rad after each search cycle, target at ``offset`` from the start.
+
+    The platform starts at (0, 0) and the target stands at ``offset`` (theta1, theta2).
+
+    Examples
+    --------
+    >>> path = search_path(cycles=30)
+    >>> round(math.degrees(float(path[-1, 1])))                 # found near theta2 = 12 deg
+    12
+    """
+    model = UltrasonicTrackerModel(seed=seed)
+    model.execute(f"SIM:LOAD STILL {math.degrees(offset[0]):.6f} {math.degrees(offset[1]):.6f} {range_mm:.3f}")
+    path = [_pointing(model)[0]]
+    model.execute("TRACK ON")
+    for _ in range(cycles):
+        model.advance(model.next_cycle_s - model.clock_ms / 1000.0 + 1e-6)
+        path.append(_pointing(model)[0])
+    return np.array(path)
+
+
+def loses_target(rate: float, servo: Servo | None = DEFAULT_SERVO, seed: int = 0, range_mm: float = 1300.0,
+                 sweep: float = math.radians(76.0), faults: tuple[str, ...] = ()) -> bool:
+    """Whether a target circling at ``rate`` (rad/s) through ``sweep`` at ``range_mm`` is lost.
+
+    Examples
+    --------
+    >>> loses_target(math.radians(10.0)), loses_target(math.radians(50.0))
+    (False, True)
+    """
+    model = UltrasonicTrackerModel(seed=seed, servo=servo)
+    for fault in faults:
+        if model.execute(f"SIM:FAULT {fault}") != ["OK"]:
+            raise ValueError(f"SIM:FAULT {fault} refused")
+    half = math.degrees(sweep) / 2
+    model.execute(f"AIM {-half:.6f} 0")
+    model.advance(1.0)
+    model.execute(f"SIM:LOAD CIRCLE {-half:.6f} {math.degrees(rate):.6f} {range_mm:.3f} 0.5")
+    model.execute("TRACK ON")
+    start = model.clock_ms / 1000.0 + 0.5
+    end = start + sweep / rate
+    while model.clock_ms / 1000.0 < end:
+        model.advance(0.05)
+        _, error = _pointing(model)
+        if error > MAIN_LOBE or "L" in model.track_flags:
+            return True
+    return False
+
+
+def tracking_limit(servo: Servo | None = DEFAULT_SERVO, seed: int = 0, lo: float = math.radians(5.0),
+                   hi: float = math.radians(60.0), tol: float = math.radians(0.25),
+                   faults: tuple[str, ...] = ()) -> float:
+    """Smallest circling rate (rad/s) that is lost, to within ``tol`` (bisection)."""
+    if loses_target(lo, servo, seed, faults=faults) or not loses_target(hi, servo, seed, faults=faults):
+        raise ValueError(f"tracking limit not within {math.degrees(lo):g}..{math.degrees(hi):g} deg/s")
+    while hi - lo > tol:
+        mid = (lo + hi) / 2
+        if loses_target(mid, servo, seed, faults=faults):
+            hi = mid
+        else:
+            lo = mid
+    return (lo + hi) / 2
+
+
+def cycle_times(range_mm: float = 1300.0, cycles: int = 50, seed: int = 0) -> np.ndarray:
+    """Durations (s) of ``cycles`` search cycles on a still target at ``range_mm`` (from ``!TRK`` times).
+
+    Examples
+    --------
+    >>> round(float(cycle_times(cycles=40).mean()), 2)          # about 80 ms at 1.3 m (§2.4)
+    0.08
+    """
+    model = UltrasonicTrackerModel(seed=seed)
+    model.execute(f"SIM:LOAD STILL 0 0 {range_mm:.3f}")
+    model.execute("STREAM ON")
+    model.execute("TRACK ON")
+    stamps: list[int] = []
+    while len(stamps) <= cycles:
+        model.advance(0.05)
+        stamps += [int(line.split()[1]) for line in model.stream_lines() if line.startswith("!TRK")]
+    return np.diff(stamps[: cycles + 1]) / 1000.0

@@ -1,0 +1,30 @@
+"""The Examples in the tracker and gimbal modules' docstrings run and pass."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = [
+    "mirrorlab.instruments.line_tracker.sensor",
+    "mirrorlab.instruments.line_tracker.view",
+    "mirrorlab.instruments.line_tracker.model",
+    "mirrorlab.instruments.line_tracker.driver",
+    "mirrorlab.instruments.virtual_lab.world",
+    "mirrorlab.instruments.mirror_gimbal.dynamics",
+    "mirrorlab.instruments.mirror_gimbal.driver",
+    "mirrorlab.instruments.mirror_gimbal.experiments",
+    "mirrorlab.instruments.ultrasonic_tracker.acoustics",
+    "mirrorlab.instruments.ultrasonic_tracker.echoes",
+    "mirrorlab.instruments.ultrasonic_tracker.search",
+    "mirrorlab.instruments.ultrasonic_tracker.experiments",
+    "mirrorlab.instruments.ultrasonic_tracker.driver",
+]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_module_examples(name: str) -> None:
+    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
