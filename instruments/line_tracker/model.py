@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-from mirrorlab.core.devices.simulator import CommandError, LineSimulator
+from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.virtual_lab.world import Path, Sphere, TrackingWorld, axis_angles
 
 from .detector import OpticalDetector

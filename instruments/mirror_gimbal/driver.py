@@ -16,10 +16,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Emit, SerialInstrument
-from mirrorlab.core.errors import DeviceReplyError, ProtocolError
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.streams import StreamSpec
+from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
+from mirrorlab.core.devices import Emit, SerialInstrument
 from mirrorlab.instruments.line_tracker.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
 
 from .model import MirrorGimbalModel

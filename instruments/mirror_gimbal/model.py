@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from mirrorlab.core.devices.simulator import CommandError, LineSimulator
+from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.line_tracker.detector import OpticalDetector
 from mirrorlab.instruments.line_tracker.sensor import video_signal
 from mirrorlab.instruments.line_tracker.view import (

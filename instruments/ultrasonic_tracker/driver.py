@@ -14,10 +14,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from mirrorlab.core.devices.instrument import Emit, SerialInstrument
-from mirrorlab.core.errors import DeviceReplyError, ProtocolError
-from mirrorlab.core.params import Parameter, ParameterSet
-from mirrorlab.core.streams import StreamSpec
+from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
+from mirrorlab.core.devices import Emit, SerialInstrument
 
 from .model import KH_DEFAULT, UltrasonicTrackerModel
 

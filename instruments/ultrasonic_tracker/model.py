@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-from mirrorlab.core.devices.simulator import CommandError, Delay, LineSimulator
+from mirrorlab.core.devices import CommandError, Delay, LineSimulator
 from mirrorlab.instruments.virtual_lab.world import Path, Sphere, TrackingWorld
 
 from .acoustics import PITCH, speed_of_sound, wavenumber
