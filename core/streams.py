@@ -160,6 +160,8 @@ class Subscription:
     def _push(self, block: Block) -> None:
         size = block.nbytes
         with self._cond:
+            if self.closed:  # published while being unsubscribed
+                return
             self._blocks.append(block)
             self._bytes += size
             while self._bytes > self.max_bytes and len(self._blocks) > 1:
@@ -186,11 +188,13 @@ class Subscription:
             return block
 
     def close(self) -> None:
-        """Stop receiving blocks and wake a waiting :meth:`get` (idempotent)."""
+        """Stop receiving blocks, release the waiting ones and wake a waiting :meth:`get` (idempotent)."""
         with self._cond:
             if self.closed:
                 return
             self.closed = True
+            self._blocks.clear()
+            self._bytes = 0
             self._cond.notify_all()
         if self._on_close is not None:
             self._on_close(self)
