@@ -41,6 +41,7 @@ CORE_COMMANDS = (
     Command("demo", "run the bundled demonstration recipe on simulated instruments", f"{__package__}.run_cmd:add"),
     Command("analyze", "run a registered algorithm on datasets of a session", f"{__package__}.analyze_cmd:add"),
     Command("record", "record one instrument (real or simulated) into a new session", f"{__package__}.analyze_cmd:add"),
+    Command("batch", "run an analysis recipe on many session files on Dask workers", "mirrorlab.core.batch.cli:add"),
 )
 
 
