@@ -14,7 +14,7 @@ from rich.table import Table
 from ..cli.options import existing_path
 from .cluster import dask_client, describe
 from .options import add_cluster_options, count
-from .runner import SUMMARY_NAME, FileResult, run_batch, write_summary
+from .runner import SUMMARY_NAME, BatchError, FileResult, run_batch, write_summary
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -43,18 +43,17 @@ def run(args: argparse.Namespace) -> int:
         with bar:
             task = bar.add_task("batch", total=len(args.inputs))
 
-            def done(result: FileResult) -> None:
-                bar.advance(task)
-                if result.status != "ok":
-                    stderr.print(f"[red]failed[/]: {result.source}: {result.error}", highlight=False, soft_wrap=True)
-
             results = run_batch(client, args.recipe, args.inputs, args.out, provenance, args.overrides,
-                                args.retries, args.overwrite, done)
+                                args.retries, args.overwrite, lambda _: bar.advance(task))
     summary = args.out / SUMMARY_NAME
     write_summary(results, summary)
     print_table(results, provenance)
     print(f"summary: {summary}")
-    return 0 if all(r.status == "ok" for r in results) else 1
+    failed = [r.source.name for r in results if r.status != "ok"]
+    if failed:  # the table says why; the exit status and one error line say that something failed
+        raise BatchError(f"{len(failed)} of {len(results)} files failed ({', '.join(failed)}); "
+                         f"their errors are in the table and in {summary}")
+    return 0
 
 
 def print_table(results: list[FileResult], provenance: dict) -> None:

@@ -45,6 +45,10 @@ class FileResult:
     figures: dict[str, float] = field(default_factory=dict)
 
 
+class BatchError(MirrorlabError):
+    """Some files of a batch failed (each one's error is in the summary)."""
+
+
 class BatchFileError(MirrorlabError):
     """One input failed in its batch task (kept picklable for Dask: message and seconds)."""
 

@@ -65,6 +65,9 @@ def test_batch_equals_serial_and_reports_a_failing_input(sessions: list[Path], t
                    "--workers", "2", "--retries", "1", "--no-progress", timeout=600)
     assert proc.returncode == 1, proc.stderr + proc.stdout
     assert "Traceback" not in proc.stderr
+    assert [line for line in proc.stderr.splitlines() if line.startswith("mirrorlab: error:")] == [
+        f"mirrorlab: error: 1 of 3 files failed (broken.h5); their errors are in the table and in "
+        f"{tmp_path / 'out' / 'batch-summary.csv'}"]
     assert [_digest(p) for p in sessions] == before, "an input was modified"
     table = " ".join(proc.stdout.split())
     assert "2 ok, 1 failed, on 2 worker(s)" in table and all(n in table for n in ("trial1.h5", "trial2.h5", "broken.h5"))
