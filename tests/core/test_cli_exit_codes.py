@@ -79,6 +79,8 @@ CASES = [
     ("batch", ["batch", f"{D}/filter.toml", f"{D}/s.h5"], 2),  # --out missing
     ("batch", ["batch", f"{D}/filter.toml", f"{D}/garbage.h5", "--out", f"{D}/batch2", "--workers", "1",
                "--retries", "0", "--no-progress"], 1),
+    ("batch", ["batch", f"{D}/filter.toml", f"{D}/s.h5", "--out", f"{D}/batch3", "--scheduler", "tcp://127.0.0.1:9",
+               "--no-progress"], 1),  # no scheduler there
     ("demo", ["demo", "--help"], 0),
     ("demo", ["demo", "--set", "nope.x=1"], 2),
     ("demo", ["demo", "--out", "/proc/mirrorlab-demo.h5", "--no-progress"], 1),  # cannot create the file
