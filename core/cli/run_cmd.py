@@ -6,11 +6,10 @@ import argparse
 from contextlib import ExitStack
 from importlib import resources
 from pathlib import Path
-from typing import Any
 
 from ..batch.options import add_cluster_options, positive_int
 from ..errors import Problem, ValidationError
-from ..recipes import load_recipe, run_analysis, run_recipe
+from ..recipes import Recipe, load_recipe, run_analysis, run_recipe
 from ..session import Session
 from .options import existing_path
 from .outputs import add_overwrite_option, cli_advice
@@ -80,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_on_session(args: argparse.Namespace, recipe: Any) -> int:
+def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
     if args.out or args.overwrite:
         raise ValidationError([Problem("--session", "appends to that file: --out and --overwrite do not apply")])
     with ExitStack() as stack:
@@ -106,7 +105,9 @@ def demo(args: argparse.Namespace) -> int:
     default = acquire.default_output(Path.cwd() / DEMO_OUTPUT)
     out = args.out or default.with_name(default.name.replace(DEMO_ACQUIRE.stem, DEMO_NAME, 1))
     with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
-        subscribe = lambda s: s.events.subscribe(on_event)  # noqa: E731
+        def subscribe(session: Session) -> None:
+            session.events.subscribe(on_event)
+
         run_recipe(acquire, out, on_session=subscribe, overwrite=args.overwrite)
         run_analysis(analysis, out, on_session=subscribe)
     print_summary(out)
