@@ -93,6 +93,12 @@ class Algorithm(ABC):
     parameters: ClassVar[ParameterSet] = ParameterSet()
     inputs: ClassVar[tuple[Port, ...]] = ()
     outputs: ClassVar[tuple[Port, ...]] = ()
+    #: Inputs whose first axis is frames, each frame computed on its own: a batch engine may then
+    #: run chunks of frames apart and concatenate the outputs (all frames first) in frame order.
+    frame_inputs: ClassVar[tuple[str, ...]] = ()
+    #: Padding of outputs that are ragged along their second axis (e.g. markers per frame) when
+    #: chunks are merged: output name -> fill value; floating outputs not listed are NaN-padded.
+    frame_fill: ClassVar[Mapping[str, Any]] = {}
 
     @abstractmethod
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any],
@@ -103,6 +109,15 @@ class Algorithm(ABC):
         present. Raise an :class:`~mirrorlab.core.errors.AlgorithmError` subclass naming the
         frame or marker on degenerate input.
         """
+
+    @classmethod
+    def frame_wise(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
+        """The inputs that may be split into chunks of frames for these (validated) parameters.
+
+        Empty when a frame's result depends on other frames; override when that depends on a
+        parameter (e.g. continuity from the previous frame).
+        """
+        return cls.frame_inputs
 
     @classmethod
     def describe(cls) -> dict[str, Any]:

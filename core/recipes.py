@@ -32,6 +32,7 @@ file, key path and reason. ``--set KEY=VALUE`` overrides (``instruments.cam.sett
 
 from __future__ import annotations
 
+import hashlib
 import json
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
@@ -150,8 +151,13 @@ def _apply_override(data: dict[str, Any], keys: list[str], value: Any) -> None:
         raise ValidationError([Problem("--set " + ".".join(keys), "does not name a table key")])
 
 
-def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Registry | None = None) -> Recipe:
-    """Read, override and validate a recipe; raise :class:`ValidationError` listing every problem."""
+def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Registry | None = None,
+                analysis: bool = False) -> Recipe:
+    """Read, override and validate a recipe; raise :class:`ValidationError` listing every problem.
+
+    ``analysis``: the recipe is to run on an existing session (:func:`run_analysis`), so it may
+    declare no instruments and no step that records.
+    """
     path = Path(path)
     file = str(path)
     try:
@@ -234,7 +240,16 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         rest = {k: v for k, v in table.items() if k != "action"}
         values, more = cls.validate(rest, where, file, registry, labels)
         problems += more
+        if analysis and cls.records:
+            problems.append(Problem(f"{where}.action", f"{cls.name!r} records from instruments; a recipe run on an "
+                                    "existing session (--session) holds analysis steps only", file))
         steps.append(StepPlan(i, cls.name, cls, values))
+    if analysis and instruments:
+        problems.append(Problem("instruments", "a recipe run on an existing session (--session) declares no "
+                                "instruments; the session's recordings are its inputs", file))
+    if analysis and controllers:
+        problems.append(Problem("controllers", "a recipe run on an existing session (--session) declares no "
+                                "controllers: nothing acquires there", file))
     if not steps and not problems:
         problems.append(Problem("steps", "the recipe has no [[steps]]; nothing would happen", file))
     if problems:
@@ -352,3 +367,35 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
     if stopped:
         raise StoppedOnRequest(f"{stopped}; the session file keeps everything recorded: {out}")
     return out
+
+
+def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,
+                 on_session: Callable[[Session], None] | None = None, executor: Any = None) -> Path:
+    """Run an analysis recipe's steps on an existing session file, appending their results; return its path.
+
+    The recipe (loaded with ``analysis=True``) is logged with its path, hash and overrides; each
+    result keeps its own provenance. ``executor`` (see :attr:`Session.executor`) runs the
+    algorithms elsewhere, e.g. in chunks of frames on Dask workers. On failure the results stored
+    so far stay, the session keeps its status and the error propagates. :meth:`Session.request_stop`
+    ends it after the running step (:class:`~mirrorlab.core.errors.StoppedOnRequest`).
+    """
+    digest = hashlib.sha256((recipe.text + json.dumps(recipe.overrides)).encode()).hexdigest()
+    with Session.open(path, writable=True, registry=registry) as session:
+        session.executor = executor
+        if on_session is not None:
+            on_session(session)
+        session.events.emit("info", "recipe", "analysis", f"analysis recipe {recipe.path.name}",
+                            path=str(recipe.path), recipe_hash=f"sha256:{digest}", overrides=recipe.overrides,
+                            executor=getattr(executor, "provenance", None))
+        with session.operation():
+            for step in recipe.steps:
+                session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
+                try:
+                    step.cls().execute(session, step.values)
+                except MirrorlabError:
+                    if not session.stop_requested:
+                        raise
+                if session.stop_requested:
+                    raise StoppedOnRequest(f"stopped on request during step {step.index} ({step.action}); "
+                                           f"the results stored so far stay in {path}")
+    return path

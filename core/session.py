@@ -125,6 +125,10 @@ class Session:
         #: How long the last recording lasted (start to stop of the instruments), s.
         self.recorded_seconds = 0.0
         self._record_start = 0.0
+        #: Runs algorithms for :meth:`run` instead of this process (see :mod:`mirrorlab.core.batch`):
+        #: called as ``executor(session, cls, inputs, params, context)`` with inputs as h5py datasets
+        #: or arrays, returns a ``RunOutcome``; its ``provenance`` dict is stored as ``@executor``.
+        self.executor: Any = None
         for message in registry.notify("mirrorlab_session_opened", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
 
@@ -838,7 +842,7 @@ class Session:
         for name, value in inputs.items():
             if isinstance(value, str):
                 path = self.resolve(value, f"inputs.{name}")
-                arrays[name] = self.file[path][()]
+                arrays[name] = self.file[path]  # read below, or in chunks by the executor's workers
                 sources[name] = path
             else:
                 arrays[name] = np.asarray(value)
@@ -851,7 +855,11 @@ class Session:
 
         self._commit()
         started = utc_now_iso()
-        outcome = execute(cls, arrays, parameters or {}, RunContext(report))
+        if self.executor is None:
+            outcome = execute(cls, {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()},
+                              parameters or {}, RunContext(report))
+        else:
+            outcome = self.executor(self, cls, arrays, parameters or {}, RunContext(report))
         finished = utc_now_iso()
         group = self.file.require_group(f"results/{cls.name}")
         run_id = f"run-{len(group) + 1:04d}"
@@ -862,6 +870,8 @@ class Session:
                         "finished_utc": finished, "status": outcome.status, "error": outcome.error})
         schema.set_json(g, "parameters", to_jsonable(outcome.params))
         schema.set_json(g, "inputs", sources)
+        if self.executor is not None:
+            schema.set_json(g, "executor", self.executor.provenance)
         if outcome.traceback:
             g.attrs["traceback"] = outcome.traceback
         for name, value in outcome.outputs.items():
@@ -874,6 +884,26 @@ class Session:
         for message in self.registry.notify("mirrorlab_result_written", session=self, result=ref):
             self.events.emit("warning", "session", "plugin_error", message)
         return ref
+
+    @contextlib.contextmanager
+    def shared_for_reading(self) -> Iterator[None]:
+        """Let other processes read the file (SWMR) during the block; this session writes nothing meanwhile.
+
+        Everything is flushed, the file switches to SWMR mode (as while recording, so readers open it
+        with :func:`~mirrorlab.core.store.files.open_readonly`), and is reopened writable after.
+        """
+        self._require_writable("share the file for reading")
+        self._write_pending_log()
+        self._commit()
+        self.file.flush()
+        self.file.swmr_mode = True
+        files.write_lock(self.path)
+        try:
+            yield
+        finally:
+            self.file.close()
+            self.file = files.open_writable(self.path)
+            files.remove_lock(self.path)
 
     def resolve(self, reference: str, key: str = "dataset") -> str:
         """The dataset path a reference names.

@@ -44,6 +44,8 @@ class Step(ABC):
     parameters: ClassVar[ParameterSet] = ParameterSet()
     #: Nested tables the step's table may hold (validated by :meth:`validate`): name -> what goes in it.
     tables: ClassVar[Mapping[str, str]] = {}
+    #: The step records from instruments: not allowed in an analysis recipe on an existing session.
+    records: ClassVar[bool] = False
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
@@ -59,6 +61,7 @@ class Step(ABC):
 class Acquire(Step):
     name = "acquire"
     description = "record the instruments of the session for a duration, or until their sources end"
+    records = True
     parameters = ParameterSet(
         Parameter("seconds", float, 0.0, unit="s", bounds=(0.0, 7 * 24 * 3600.0),
                   help="how long to record; 0 = until every recorded source has ended"),

@@ -122,8 +122,9 @@ def _throwaway_venv(where: Path) -> Path:
     (purelib / "_mirrorlab_project_venv.pth").write_text(
         f"import site; site.addsitedir({sysconfig.get_paths()['purelib']!r})\n")
     script = where / "bin" / "mirrorlab"  # what pip writes for the console_scripts entry point
+    # guarded like pip's: a Dask worker started with spawn imports the main script again
     script.write_text(f"#!{where / 'bin' / 'python'}\nimport sys\nfrom mirrorlab.core.cli import main\n"
-                      "sys.exit(main())\n")
+                      "if __name__ == '__main__':\n    sys.exit(main())\n")
     script.chmod(0o755)
     return where
 

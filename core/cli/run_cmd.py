@@ -1,4 +1,4 @@
-"""``mirrorlab run`` (a recipe) and ``mirrorlab demo`` (the bundled main job)."""
+"""``mirrorlab run`` (a recipe, or an analysis recipe on an existing session) and ``mirrorlab demo``."""
 
 from __future__ import annotations
 
@@ -6,18 +6,26 @@ import argparse
 import signal
 import sys
 import threading
+from contextlib import ExitStack
 from importlib import resources
 from pathlib import Path
 
-from ..recipes import load_recipe, run_recipe
+from ..batch.options import add_cluster_options, positive_int
+from ..errors import Problem, ValidationError
+from ..recipes import Recipe, load_recipe, run_analysis, run_recipe
 from ..session import Session
+from .options import existing_path
 from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
 
-#: The recipe ``mirrorlab demo`` runs: package data of ``mirrorlab.sessions`` (``sessions/`` in a checkout).
-DEMO_RECIPE = Path(str(resources.files("mirrorlab.sessions") / "rssr_mirror.toml"))
-#: Where ``mirrorlab demo`` writes without ``--out``, relative to the current folder.
+_BUNDLED = resources.files("mirrorlab.sessions")
+#: The recipes ``mirrorlab demo`` runs, one after the other on one session: package data of
+#: ``mirrorlab.sessions`` (``sessions/`` in a checkout).
+DEMO_ACQUIRE = Path(str(_BUNDLED / "rssr_acquire.toml"))
+DEMO_ANALYSIS = Path(str(_BUNDLED / "rssr_analysis.toml"))
+#: Where ``mirrorlab demo`` writes without ``--out``, relative to the current folder, and the file's stem.
 DEMO_OUTPUT = Path("sessions") / "out"
+DEMO_NAME = "rssr_mirror"
 
 
 def _plural(n: int, word: str) -> str:
@@ -33,24 +41,40 @@ def _common(p: argparse.ArgumentParser, out_help: str) -> None:
 
 
 def add(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="validate and run a recipe (TOML) into a new session file")
+    p = sub.add_parser("run", help="validate and run a recipe (TOML) into a new session file",
+                       description="Run a recipe into a new session file, or with --session an analysis recipe "
+                                   "(no instruments, no acquire step) on an existing session, appending results.")
     p.add_argument("recipe", type=Path, help="recipe file (TOML), e.g. sessions/scan_film.toml")
     _common(p, "session file to write (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)")
     p.add_argument("--check", action="store_true", help="only validate the recipe")
+    p.add_argument("--session", type=existing_path, metavar="FILE.h5",
+                   help="run an analysis recipe on this existing session, appending its results")
+    cluster = p.add_argument_group("chunks of frames on Dask workers (with --session)")
+    add_cluster_options(cluster)
+    cluster.add_argument("--chunk-frames", type=positive_int, default=None, metavar="N",
+                         help="frames per chunk of frame-wise steps (detection; default 1000)")
     p.set_defaults(func=run)
     d = sub.add_parser("demo", help="run the bundled demonstration recipe on simulated instruments",
-                       description=f"Run the RSSR mirror experiment recipe that comes with mirrorlab ({DEMO_RECIPE.name}, "
-                                   "see docs/demo.md) on simulated instruments, from any folder.")
-    _common(d, f"session file to write (default: {DEMO_OUTPUT}/rssr_mirror-<UTC time>.h5 in the current folder)")
+                       description=f"Run the RSSR mirror experiment that comes with mirrorlab ({DEMO_ACQUIRE.name}, "
+                                   f"then {DEMO_ANALYSIS.name} on its session; see docs/demo.md) on simulated "
+                                   "instruments, from any folder. --set steps.N... overrides the analysis recipe, "
+                                   "other keys the recording one.")
+    _common(d, f"session file to write (default: {DEMO_OUTPUT}/{DEMO_NAME}-<UTC time>.h5 in the current folder)")
     d.set_defaults(func=demo, check=False)
 
 
 def run(args: argparse.Namespace) -> int:
-    recipe = load_recipe(args.recipe, args.overrides)
+    analysis = getattr(args, "session", None) is not None
+    recipe = load_recipe(args.recipe, args.overrides, analysis=analysis)
     if args.check:
         print(f"{args.recipe}: ok ({_plural(len(recipe.instruments), 'instrument')}, "
               f"{_plural(len(recipe.steps), 'step')})")
         return 0
+    if analysis:
+        return _run_on_session(args, recipe)
+    if args.workers or args.scheduler or args.chunk_frames:
+        raise ValidationError([Problem("--workers", "--workers, --scheduler and --chunk-frames go with --session "
+                                       "(an analysis on an existing session)")])
     out = args.out or recipe.default_output(getattr(args, "default_root", None))
 
     def on_session(session: Session) -> None:
@@ -61,8 +85,7 @@ def run(args: argparse.Namespace) -> int:
         with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
             run_recipe(recipe, out, on_session=on_session, overwrite=args.overwrite)
     finally:
-        if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+        restore_interrupt()
     print_summary(out)
     return 0
 
@@ -79,9 +102,49 @@ def stop_on_interrupt(session: Session) -> None:
         signal.signal(signal.SIGINT, first)
 
 
+def restore_interrupt() -> None:
+    """Ctrl-C raises KeyboardInterrupt again (after :func:`stop_on_interrupt`)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
+    if args.out or args.overwrite:
+        raise ValidationError([Problem("--session", "appends to that file: --out and --overwrite do not apply")])
+    with ExitStack() as stack:
+        executor = None
+        if args.workers or args.scheduler:
+            from ..batch.cluster import dask_client, describe
+            from ..batch.executors import CHUNK_FRAMES, ChunkedExecutor
+
+            client = stack.enter_context(dask_client(args.workers, args.scheduler))
+            executor = ChunkedExecutor(client, {**describe(client), "mode": "chunked frames"},
+                                       args.chunk_frames or CHUNK_FRAMES)
+        on_event = stack.enter_context(progress_bar(not args.no_progress))
+        run_analysis(recipe, args.session, on_session=lambda s: s.events.subscribe(on_event), executor=executor)
+    print_summary(args.session)
+    return 0
+
+
 def demo(args: argparse.Namespace) -> int:
-    args.recipe, args.default_root = DEMO_RECIPE, Path.cwd() / DEMO_OUTPUT
-    return run(args)
+    """The recording recipe into a new session, then the analysis recipe on it: one session file."""
+    analysis_overrides = [o for o in args.overrides if o.startswith("steps.")]
+    acquire = load_recipe(DEMO_ACQUIRE, [o for o in args.overrides if o not in analysis_overrides])
+    analysis = load_recipe(DEMO_ANALYSIS, analysis_overrides, analysis=True)
+    default = acquire.default_output(Path.cwd() / DEMO_OUTPUT)
+    out = args.out or default.with_name(default.name.replace(DEMO_ACQUIRE.stem, DEMO_NAME, 1))
+    try:
+        with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+            def subscribe(session: Session) -> None:
+                session.events.subscribe(on_event)
+                stop_on_interrupt(session)
+
+            run_recipe(acquire, out, on_session=subscribe, overwrite=args.overwrite)
+            run_analysis(analysis, out, on_session=subscribe)
+    finally:
+        restore_interrupt()
+    print_summary(out)
+    return 0
 
 
 def print_summary(path: Path) -> None:

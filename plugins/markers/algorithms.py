@@ -36,6 +36,7 @@ class DetectMarkers(Algorithm):
                Port("area", "(F, K_max) pixels above threshold, NaN-padded", "px²"),
                Port("eccentricity", "(F, K_max) second-moment eccentricity, NaN-padded"),
                Port("contrast", "(F, K_max) peak minus local background, NaN-padded", "grey level"))
+    frame_inputs = ("frames",)  # each frame is detected on its own (Otsu's threshold too)
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         frames = np.asarray(inputs["frames"])

@@ -34,6 +34,12 @@ class PairMirror(Algorithm):
                Port("cost", "(F, N, E) epipolar distance of the pair, NaN none", "px"),
                Port("ambiguous", "(F, N, E) the pairing was ambiguous (and left undecided)"),
                Port("n_ambiguous", "(F,) ambiguous pairs per frame"))
+    frame_inputs = ("real", "virtual", "virtual_mirror")
+
+    @classmethod
+    def frame_wise(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
+        """Frames pair on their own only without continuity (which looks at the previous frame)."""
+        return () if params["continuity"] else cls.frame_inputs
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         real, virt = np.asarray(inputs["real"], float), np.asarray(inputs["virtual"], float)

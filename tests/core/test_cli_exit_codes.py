@@ -39,6 +39,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     cv2.imwrite(str(d / "blank" / "white.png"), np.full((120, 160), 255, np.uint8))
     (d / "failing.toml").write_text(ACME_FAILING_RECIPE)
+    (d / "filter.toml").write_text('[[steps]]\naction = "run"\nalgorithm = "filter"\n'
+                                   'inputs = { time = "/t10", values = "/v10" }\n')
     return d
 
 
@@ -71,6 +73,14 @@ CASES = [
     ("run", ["run", f"{D}/missing.toml"], 2),
     ("run", ["run", f"{D}/s.h5"], 2),  # not a TOML recipe
     ("run", ["run", f"{D}/failing.toml", "--out", f"{D}/failing.h5", "--no-progress"], 1),
+    ("run", ["run", f"{D}/filter.toml", "--session", f"{D}/s.h5", "--no-progress"], 0),
+    ("run", ["run", str(REPO / "sessions" / "scan_film.toml"), "--session", f"{D}/s.h5"], 2),  # records
+    ("batch", ["batch", f"{D}/filter.toml", f"{D}/s.h5", "--out", f"{D}/batch", "--workers", "1", "--no-progress"], 0),
+    ("batch", ["batch", f"{D}/filter.toml", f"{D}/s.h5"], 2),  # --out missing
+    ("batch", ["batch", f"{D}/filter.toml", f"{D}/garbage.h5", "--out", f"{D}/batch2", "--workers", "1",
+               "--retries", "0", "--no-progress"], 1),
+    ("batch", ["batch", f"{D}/filter.toml", f"{D}/s.h5", "--out", f"{D}/batch3", "--scheduler", "tcp://127.0.0.1:9",
+               "--no-progress"], 1),  # no scheduler there
     ("demo", ["demo", "--help"], 0),
     ("demo", ["demo", "--set", "nope.x=1"], 2),
     ("demo", ["demo", "--out", "/proc/mirrorlab-demo.h5", "--no-progress"], 1),  # cannot create the file

@@ -7,7 +7,8 @@ import importlib
 
 import pytest
 
-MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options"]
+MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
+           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -48,7 +48,8 @@ def test_wheel_contains_every_module(wheel: Path) -> None:
                 for folder in FOLDERS.values() for p in (REPO / folder).rglob("*.py")}
     assert expected <= names, sorted(expected - names)[:10]
     assert not any(n.startswith("mirrorlab/__init__") for n in names), "mirrorlab must stay a namespace package"
-    assert "mirrorlab/sessions/rssr_mirror.toml" in names, "mirrorlab demo needs its recipe as package data"
+    for recipe in ("rssr_acquire.toml", "rssr_analysis.toml"):
+        assert f"mirrorlab/sessions/{recipe}" in names, "mirrorlab demo needs its recipes as package data"
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
     text = zipfile.ZipFile(wheel).read(entry_points).decode()
     assert "mirrorlab = mirrorlab.core.cli:main" in text and "[pytest11]" in text

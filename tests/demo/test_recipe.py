@@ -1,4 +1,5 @@
-"""`sessions/rssr_mirror.toml` (what `mirrorlab demo` runs): validation and a short real run via the CLI.
+"""`sessions/rssr_acquire.toml` + `sessions/rssr_analysis.toml` (what `mirrorlab demo` runs, one after the
+other on one session): validation and a short real run via the CLI.
 
 The short run films 12 frames at 6 frames/s (2 s of wall clock instead of 11). Bound on the 3-D
 error: this run measured 1.26 mm (S_A) and 0.71 mm (S_C) RMS (the full 33-frame demo: 0.84 and
@@ -18,7 +19,8 @@ from mirrorlab.core.store import schema
 
 from tests.support import REPO, run_cli
 
-RECIPE = REPO / "sessions" / "rssr_mirror.toml"
+ACQUIRE = REPO / "sessions" / "rssr_acquire.toml"
+ANALYSIS = REPO / "sessions" / "rssr_analysis.toml"
 SHORT = ("--set", "instruments.rssr.settings.frame_rate=6", "--set", "instruments.rssr.settings.scene_frames=12")
 STAGES = ("lab_survey", "detect_markers", "match_grid", "calibrate_plane", "split_views", "estimate_epipole",
           "pair_mirror", "assign_views", "track", "mirror_tracks", "mirror_normal", "reconstruct_mirror",
@@ -35,25 +37,49 @@ def short_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return out, proc.stdout
 
 
-def test_recipe_validates() -> None:
-    proc = run_cli("run", str(RECIPE), "--check")
+def test_recipes_validate() -> None:
+    proc = run_cli("run", str(ACQUIRE), "--check")
     assert proc.returncode == 0, proc.stderr
-    assert "rssr_mirror.toml: ok (2 instruments, 17 steps)" in proc.stdout
+    assert "rssr_acquire.toml: ok (2 instruments, 1 step)" in proc.stdout
+    proc = run_cli("run", str(ANALYSIS), "--check")
+    assert proc.returncode == 0, proc.stderr
+    assert "rssr_analysis.toml: ok (0 instruments, 16 steps)" in proc.stdout
 
 
-def test_demo_command_runs_this_recipe(tmp_path: Path) -> None:
-    from mirrorlab.core.cli.run_cmd import DEMO_RECIPE
+def test_demo_command_runs_these_recipes(tmp_path: Path) -> None:
+    from mirrorlab.core.cli.run_cmd import DEMO_ACQUIRE, DEMO_ANALYSIS
 
-    assert DEMO_RECIPE.read_bytes() == RECIPE.read_bytes()
+    assert DEMO_ACQUIRE.read_bytes() == ACQUIRE.read_bytes()
+    assert DEMO_ANALYSIS.read_bytes() == ANALYSIS.read_bytes()
     helped = run_cli("demo", "--help", cwd=tmp_path)
     text = " ".join(helped.stdout.split())
-    assert helped.returncode == 0 and "rssr_mirror.toml" in text and "from any folder" in text
+    assert helped.returncode == 0 and "rssr_acquire.toml" in text and "rssr_analysis.toml" in text
+    assert "from any folder" in text
 
 
 def test_bad_override_is_a_usage_error() -> None:
-    proc = run_cli("run", str(RECIPE), "--check", "--set", "steps.3.parameters.pitch=-5")
+    proc = run_cli("run", str(ANALYSIS), "--check", "--set", "steps.2.parameters.pitch=-5")
     assert proc.returncode == 2
-    assert "steps.3.parameters.pitch" in proc.stderr
+    assert "steps.2.parameters.pitch" in proc.stderr
+
+
+def test_analysis_recipe_records_nothing() -> None:
+    """On an existing session only analysis runs: the recording recipe is refused with --session."""
+    proc = run_cli("run", str(ACQUIRE), "--check", "--session", str(ACQUIRE))
+    assert proc.returncode == 2
+    assert "steps.0.action" in proc.stderr and "instruments" in proc.stderr
+
+
+def test_demo_is_both_recipes_on_one_session(short_run: tuple[Path, str]) -> None:
+    """The recording recipe is the session's /config/recipe; the analysis is logged with its hash."""
+    out, _ = short_run
+    with h5py.File(out, "r") as f:
+        assert f["config/recipe"][()].decode() == ACQUIRE.read_text()
+    from mirrorlab.core import Session
+
+    with Session.open(out) as s:
+        (logged,) = [e for e in s.log() if e["kind"] == "analysis"]
+    assert logged["data"]["path"].endswith("rssr_analysis.toml") and logged["data"]["recipe_hash"].startswith("sha256:")
 
 
 def test_every_stage_ok(short_run: tuple[Path, str]) -> None:

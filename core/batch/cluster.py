@@ -1,0 +1,69 @@
+"""A Dask distributed client: a ``LocalCluster`` on this machine, or a running scheduler."""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+from ..errors import MirrorlabError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+#: Seconds to wait for a running scheduler before giving up.
+CONNECT_TIMEOUT = 10.0
+
+
+class ClusterError(MirrorlabError):
+    """The Dask scheduler could not be reached or has no workers."""
+
+
+@contextmanager
+def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Client]:
+    """A client on the scheduler at ``scheduler``, else on a new ``LocalCluster``.
+
+    Parameters
+    ----------
+    workers
+        Worker processes of the local cluster (default: one per core), one thread each: the
+        algorithms are numpy/OpenCV code holding the GIL for much of their time, so processes,
+        not threads, scale.
+    scheduler
+        Address of a running scheduler (``tcp://host:8786``), started with ``dask scheduler`` and
+        fed by ``dask worker ADDRESS`` on each machine; its workers must see the session files
+        at the same paths (a shared file system).
+    """
+    from distributed import Client, LocalCluster
+
+    # Dask logs every worker and connection at INFO; a command's output keeps to its own errors.
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise ClusterError(f"no Dask scheduler answers at {scheduler} ({exc}); start one with "
+                               "`dask scheduler` and workers with `dask worker ADDRESS`, or drop --scheduler "
+                               "for a local cluster") from None
+        with client:
+            try:
+                client.wait_for_workers(1, timeout=CONNECT_TIMEOUT)
+            except TimeoutError:
+                raise ClusterError(f"the Dask scheduler at {scheduler} has no workers; start one with "
+                                   f"`dask worker {scheduler}`") from None
+            yield client
+        return
+    with LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                      dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+        yield client
+
+
+def describe(client: Client) -> dict[str, Any]:
+    """Provenance of work run through ``client``: scheduler address, workers, threads, Dask version."""
+    import distributed
+
+    workers = client.scheduler_info(n_workers=-1)["workers"]
+    return {"engine": f"dask.distributed {distributed.__version__}", "scheduler": client.scheduler.address,
+            "workers": len(workers), "threads": sum(w["nthreads"] for w in workers.values())}

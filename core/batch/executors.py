@@ -1,0 +1,104 @@
+"""What a session runs its algorithms with (:attr:`Session.executor <mirrorlab.core.session.Session.executor>`).
+
+:class:`Executor` runs in this process and only says where in the provenance (a batch task on a
+worker). :class:`ChunkedExecutor` splits the frames of a frame-wise algorithm (detection, pairing
+without continuity) into chunks run as Dask tasks; each task reads its frames from the session
+file itself, read-only while the file is shared in SWMR mode, and the outputs are merged in frame
+order (:func:`~mirrorlab.core.batch.chunks.merge_frames`), equal bit for bit to one run on all
+frames. Everything else (tracking, anything sequential) runs in this process as before.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import h5py
+import numpy as np
+
+from ..algorithms import Algorithm, RunContext, RunOutcome, execute
+from ..store import files
+from .chunks import chunk_bounds, merge_frames
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+    from ..session import Session
+
+#: Frames per chunk by default: ~180 MB of 344 x 512 frames, a few seconds of detection.
+CHUNK_FRAMES = 1000
+
+
+def read_inputs(inputs: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Datasets read whole; arrays as they are."""
+    return {name: value[()] if isinstance(value, h5py.Dataset) else value for name, value in inputs.items()}
+
+
+class Executor:
+    """Runs algorithms in this process, noting ``provenance`` (JSON-able) with every result."""
+
+    def __init__(self, provenance: Mapping[str, Any]) -> None:
+        self.provenance = dict(provenance)
+
+    def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
+                 params: Mapping[str, Any], context: RunContext) -> RunOutcome:
+        return execute(cls, read_inputs(inputs), params, context)
+
+
+def run_chunk(path: str, cls: type[Algorithm], datasets: Mapping[str, str], arrays: Mapping[str, Any],
+              params: Mapping[str, Any], start: int, stop: int) -> RunOutcome:
+    """One Dask task: frames ``[start, stop)`` of ``datasets`` (paths in the session file at ``path``),
+    read here read-only, plus ``arrays``, through :func:`~mirrorlab.core.algorithms.execute`."""
+    f, _ = files.open_readonly(path)
+    with f, files.reading(path):
+        frames = {name: f[dataset][start:stop] for name, dataset in datasets.items()}
+    return execute(cls, {**arrays, **frames}, params)
+
+
+class ChunkedExecutor(Executor):
+    """Runs frame-wise algorithms in chunks of ``chunk_frames`` frames on the workers of ``client``.
+
+    An algorithm that is not frame-wise for its parameters, or whose frame inputs are not
+    datasets of the session, or that has at most ``chunk_frames`` frames, runs in this process.
+    """
+
+    def __init__(self, client: Client, provenance: Mapping[str, Any], chunk_frames: int = CHUNK_FRAMES) -> None:
+        if chunk_frames < 1:
+            raise ValueError(f"chunk_frames {chunk_frames}: must be at least 1")
+        super().__init__({**provenance, "chunk_frames": chunk_frames})
+        self.client = client
+        self.chunk_frames = chunk_frames
+        #: ``(algorithm, chunks)`` of each run split into chunks, in order.
+        self.chunked: list[tuple[str, int]] = []
+
+    def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
+                 params: Mapping[str, Any], context: RunContext) -> RunOutcome:
+        values = cls.parameters.validate(dict(params), where=f"{cls.name}.parameters")
+        split = [n for n in cls.frame_wise(values) if isinstance(inputs.get(n), h5py.Dataset)]
+        lengths = {inputs[n].shape[0] if inputs[n].ndim else 0 for n in split}
+        frames = lengths.pop() if len(lengths) == 1 else 0  # differing lengths: the algorithm reports them
+        if not split or frames <= self.chunk_frames:
+            return super().__call__(session, cls, inputs, values, context)
+        datasets = {n: inputs[n].name for n in split}
+        arrays = read_inputs({n: v for n, v in inputs.items() if n not in split})
+        bounds = chunk_bounds(frames, self.chunk_frames)
+        from distributed import as_completed
+
+        with session.shared_for_reading():
+            futures = {self.client.submit(run_chunk, str(session.path), cls, datasets, arrays, values, a, b,
+                                          pure=False): (a, b) for a, b in bounds}
+            done = 0
+            for future in as_completed(futures):
+                a, b = futures[future]
+                done += b - a
+                context.progress(done, frames, f"{cls.name}: frames in chunks")
+            parts = [future.result() for future in futures]
+        for (a, b), part in zip(bounds, parts):
+            if part.status != "ok":
+                return RunOutcome({}, values, "failed", f"frames {a}-{b - 1}: {part.error}", part.traceback)
+        try:
+            merged = merge_frames([p.outputs for p in parts], cls.frame_fill)
+        except ValueError as exc:
+            return RunOutcome({}, values, "failed", str(exc))
+        self.chunked.append((cls.name, len(bounds)))
+        return RunOutcome(merged, values, "ok")
