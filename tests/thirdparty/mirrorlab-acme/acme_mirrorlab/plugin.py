@@ -3,6 +3,7 @@
 from mirrorlab.core import hookimpl
 
 from .algorithm import DriftRate
+from .controller import AcmeAlarm
 from .driver import AcmeThermometer
 
 
@@ -14,3 +15,8 @@ def mirrorlab_register_instruments():
 @hookimpl
 def mirrorlab_register_algorithms():
     return [DriftRate]
+
+
+@hookimpl
+def mirrorlab_register_controllers():
+    return [AcmeAlarm]
