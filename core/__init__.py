@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from .errors import (
     AlgorithmError,
     AlgorithmInputError,
+    Cancelled,
     DamagedFileError,
     DeviceDisconnected,
     DeviceError,
@@ -44,7 +45,7 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "Session": "session", "StreamSpec": "streams"}
 
 __all__ = [
-    "Algorithm", "AlgorithmError", "AlgorithmInputError", "DamagedFileError", "DeviceDisconnected", "DeviceError",
+    "Algorithm", "AlgorithmError", "AlgorithmInputError", "Cancelled", "DamagedFileError", "DeviceDisconnected", "DeviceError",
     "DeviceReplyError", "DeviceTimeout",
     "DuplicateNameError", "MirrorlabError", "Parameter", "ParameterSet", "PluginError", "Port", "Problem",
     "ProtocolError", "ResultRef", "RunContext", "Session", "SessionError", "StreamSpec", "ValidationError",

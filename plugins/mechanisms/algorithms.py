@@ -181,8 +181,10 @@ class ArcWallGrid(Algorithm):
         Parameter("strips", int, 3000, bounds=(10, 100_000), help="strips of the area quadrature"),
     )
     inputs = ()
-    outputs = (Port("c", "(nc,) centre abscissae"), Port("h", "(nh,) centre heights"),
-               Port("area", "(nh, nc) swept areas"), Port("best", "(3,) c, h, area of the minimum"))
+    outputs = (Port("c", "(nc,) centre abscissae, in units of the rod length l"),
+               Port("h", "(nh,) centre heights, in units of l"),
+               Port("area", "(nh, nc) swept areas, in units of l²"),
+               Port("best", "(3,) c, h (units of l), area (units of l²) of the minimum"))
 
     def run(self, inputs: Mapping[str, Any], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         context.progress(0, 1, "arc grid")
@@ -211,10 +213,13 @@ class OptimalWallAlgorithm(Algorithm):
         Parameter("maxiter", int, 400, bounds=(1, 100_000), help="solver iterations"),
     )
     inputs = ()
-    outputs = (Port("w", "(61,) wall abscissae at the nodes"), Port("nodes", "(61,) node heights y_i = 0.05 i l / 3"),
-               Port("area", "() converged exact area"), Port("area_positions", "() positions-only area, final grid"),
-               Port("area_thesis", "() positions-only area with thesis_positions positions"),
-               Port("area_grid", "() objective at the optimum"), Port("start_area", "() vertical wall (3 pi l²/32)"),
+    outputs = (Port("w", "(61,) wall abscissae at the nodes, in units of the rod length l"),
+               Port("nodes", "(61,) node heights y_i = 0.05 i l / 3, in units of l"),
+               Port("area", "() converged exact area, in units of l²"),
+               Port("area_positions", "() positions-only area, final grid, in units of l²"),
+               Port("area_thesis", "() positions-only area with thesis_positions positions, in units of l²"),
+               Port("area_grid", "() objective at the optimum, in units of l²"),
+               Port("start_area", "() area of the vertical wall (3 pi l²/32), in units of l²"),
                Port("iterations", "() solver iterations"), Port("evaluations", "() area evaluations"),
                Port("seconds", "() solver time", "s"))
 
