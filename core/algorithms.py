@@ -167,7 +167,7 @@ def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params
         return RunOutcome({}, values, "failed", f"{algorithm.name} returned undeclared output(s) "
                           f"{', '.join(undeclared)}; declare each as a Port in {algorithm.name}.outputs")
     arrays = {name: np.asarray(outputs[name]) for name in declared}
-    unstorable = [f"{name} ({a.dtype})" for name, a in arrays.items() if a.dtype.kind in "OUV"]
+    unstorable = [f"{name} ({a.dtype})" for name, a in arrays.items() if a.dtype.kind in "OUMm"]
     if unstorable:
         return RunOutcome({}, values, "failed", f"{algorithm.name} returned output(s) HDF5 cannot store: "
                           f"{', '.join(unstorable)}; return numbers, booleans or bytes (dtype 'S')")

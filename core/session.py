@@ -618,16 +618,22 @@ class Session:
         schema.set_json(g, "parameters", to_jsonable(outcome.params))
         schema.set_json(g, "inputs", sources)
         schema.set_json(g, "input_sha256", digests)
+        self.file.flush()  # the run's provenance is on disk before its outputs
         ports = {p.name: p for p in cls.outputs}
-        for name, value in outcome.outputs.items():
-            ds = g.create_dataset(name, data=value)
-            ds.attrs["unit"] = _unit(ports[name].unit, units)
-            ds.attrs["description"] = ports[name].description
-        g.attrs.update({"finished_utc": utc_now_iso(), "error": outcome.error})
-        if outcome.traceback:
-            g.attrs["traceback"] = outcome.traceback
-        self.file.flush()  # everything of the run is on disk before the status says so
-        g.attrs["status"] = outcome.status
+        try:
+            for name, value in outcome.outputs.items():
+                ds = g.create_dataset(name, data=value)
+                ds.attrs["unit"] = _unit(ports[name].unit, units)
+                ds.attrs["description"] = ports[name].description
+            g.attrs.update({"finished_utc": utc_now_iso(), "error": outcome.error})
+            if outcome.traceback:
+                g.attrs["traceback"] = outcome.traceback
+            self.file.flush()  # everything of the run is on disk before the status says so
+            g.attrs["status"] = outcome.status
+        except OSError as exc:  # a full disk: the run stays without status, read as "incomplete"
+            self.events.emit("error", cls.name, "result_incomplete",
+                             f"{g.name}: writing the run failed, it is left without status (incomplete)")
+            raise files.os_error(self.path, exc, "write to") from exc
         ref = ResultRef(cls.name, run_id, outcome.status, outcome.error, label)
         self.events.emit({"ok": "info", "cancelled": "warning"}.get(outcome.status, "error"), cls.name,
                          "result_written", f"{ref.path}{f' ({label})' if label else ''}: {outcome.status}"

@@ -188,7 +188,8 @@ class ArcWallGrid(Algorithm):
 
     def run(self, inputs: Mapping[str, Any], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         context.progress(0, 1, "arc grid")
-        g = arc_grid(ARC_C, ARC_H, params["l"], params["positions"], params["strips"])
+        g = arc_grid(ARC_C, ARC_H, params["l"], params["positions"], params["strips"],
+                     progress=lambda done, total: context.progress(done, total, "arc grid"))
         context.progress(1, 1, "done")
         return {"c": g.c, "h": g.h, "area": g.area, "best": np.array(g.best)}
 
@@ -227,7 +228,8 @@ class OptimalWallAlgorithm(Algorithm):
         context.progress(0, 1, f"optimal wall ({params['method']})")
         r = optimal_wall(params["method"], params["l"], (params["positions"], params["strips"]),
                          (params["final_positions"], params["final_strips"]), params["objective"],
-                         params["thesis_positions"], params["maxiter"])
+                         params["thesis_positions"], params["maxiter"],
+                         progress=lambda calls: context.progress(calls, None, "area evaluations"))
         context.progress(1, 1, "done")
         return {"w": r.w, "nodes": THESIS_WALL_NODES * params["l"] / 3.0, "area": r.area,
                 "area_positions": r.area_positions, "area_thesis": r.area_thesis, "area_grid": r.area_grid,
