@@ -397,3 +397,9 @@ def test_analyze_takes_a_label_and_prints_units(session_file: Path, acme_site: P
     (result,) = data["results"]
     assert result["label"] == "first" and result["outputs"]["rate"] == {"shape": [], "dtype": "float64",
                                                                           "unit": "K/s"}
+
+
+def test_every_top_level_group_is_documented() -> None:
+    doc = (Path(__file__).parents[2] / "docs" / "session-format.md").read_text()
+    for name in (*schema.GROUPS, *schema.PLUGIN_GROUPS, "log"):
+        assert f"## /{name}" in doc or f"| `/{name}" in doc, f"/{name} is not described in docs/session-format.md"
