@@ -152,6 +152,7 @@ def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params
         raise AlgorithmInputError(problems)
     context = context or RunContext()
     try:
+        context.check()  # a stop requested before the run starts: do not start it
         outputs = algorithm().run(inputs, values, context)
     except Cancelled as exc:
         return RunOutcome({}, values, "cancelled", str(exc))

@@ -596,9 +596,9 @@ class Session:
                 units[name] = _dataset_unit(dataset)
             else:
                 arrays[name] = np.asarray(value)
-                sources[name] = "sha256:" + _sha256(arrays[name])
         digests = {name: {"sha256": _sha256(a), "dtype": a.dtype.str, "shape": list(a.shape)}
                    for name, a in arrays.items()}
+        sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
 
         def report(done: float, total: float | None, message: str) -> None:
             self.events.progress(cls.name, done, total, message)
