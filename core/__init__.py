@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 from .errors import (
     AlgorithmError,
     AlgorithmInputError,
+    Cancelled,
     ConfigurationError,
     DamagedFileError,
     DataError,
@@ -70,7 +71,7 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "schema": "store.schema"}
 
 __all__ = [
-    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "ConfigurationError",
+    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "Cancelled", "ConfigurationError",
     "Controller", "ControllerContext", "DamagedFileError", "DataError", "DeviceDisconnected", "DeviceError",
     "DeviceReplyError", "DeviceTimeout", "DuplicateNameError", "EventBus", "MirrorlabError", "MirrorlabWarning",
     "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",

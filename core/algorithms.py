@@ -10,16 +10,17 @@ batch engine, without change.
 
 from __future__ import annotations
 
+import re
 import threading
 import traceback
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import AlgorithmInputError, MirrorlabError, Problem
+from .errors import AlgorithmInputError, Cancelled, Problem
 from .params import ParameterSet
 
 
@@ -49,19 +50,21 @@ class Port:
                 "optional": self.optional}
 
 
-class Cancelled(MirrorlabError):
-    """The run was cancelled through its :class:`RunContext`."""
-
-
 class RunContext:
     """Given to :meth:`Algorithm.run`: report progress, check for cancellation.
+
+    Cancellation is cooperative: :meth:`progress` and :meth:`check` raise
+    :class:`~mirrorlab.core.errors.Cancelled` once ``cancel`` is set, so an algorithm that reports
+    progress inside its long loops is cancellable between two reports; :func:`execute` stores it
+    as ``status = "cancelled"``.
 
     Parameters
     ----------
     progress
         Called as ``progress(done, total, message)``; ``None`` to ignore progress.
     cancel
-        An event that, once set, makes :meth:`check_cancelled` raise :class:`Cancelled`.
+        An event that, once set, makes :meth:`check` raise :class:`~mirrorlab.core.errors.Cancelled`
+        (the session passes the one :meth:`Session.request_stop` sets).
     """
 
     def __init__(self, progress: Callable[[float, float | None, str], None] | None = None,
@@ -70,14 +73,15 @@ class RunContext:
         self.cancel = cancel or threading.Event()
 
     def progress(self, done: float, total: float | None = None, message: str = "") -> None:
-        """Report ``done`` of ``total`` units of work; also checks for cancellation."""
-        self.check_cancelled()
+        """Report ``done`` of ``total`` units of work; also checks for cancellation (see :meth:`check`)."""
         if self._progress is not None:
             self._progress(done, total, message)
+        self.check()  # after the callback: a stop it requested ends the run at once
 
-    def check_cancelled(self) -> None:
+    def check(self) -> None:
+        """Raise :class:`~mirrorlab.core.errors.Cancelled` if the run was asked to stop."""
         if self.cancel.is_set():
-            raise Cancelled("the run was cancelled")
+            raise Cancelled("stopped on request")
 
 
 class Algorithm(ABC):
@@ -148,7 +152,8 @@ def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params
     """Validate ``params`` and ``inputs``, run ``algorithm``, check its outputs.
 
     Free of global state: safe to call in another process on copies of the inputs.
-    Validation errors raise; failures inside ``run`` are returned as ``status="failed"``.
+    Validation errors raise; failures inside ``run`` are returned as ``status="failed"``, a run
+    stopped through ``context.cancel`` as ``status="cancelled"`` (no outputs either way).
     """
     values = algorithm.parameters.validate(dict(params), where=f"{algorithm.name}.parameters")
     takes = ", ".join(p.name for p in algorithm.inputs) or "none"
@@ -162,26 +167,66 @@ def execute(algorithm: type[Algorithm], inputs: Mapping[str, np.ndarray], params
         raise AlgorithmInputError(problems)
     context = context or RunContext()
     try:
+        context.check()  # a stop requested before the run starts: do not start it
         outputs = algorithm().run(inputs, values, context)
     except Cancelled as exc:
-        return RunOutcome({}, values, "failed", str(exc))
+        return RunOutcome({}, values, "cancelled", str(exc))
     except Exception as exc:  # recorded in the result group, never lost
         return RunOutcome({}, values, "failed", f"{type(exc).__name__}: {exc}", traceback.format_exc())
-    absent = [p.name for p in algorithm.outputs if p.name not in outputs]
+    declared = [p.name for p in algorithm.outputs]
+    absent = [name for name in declared if name not in outputs]
     if absent:
         return RunOutcome({}, values, "failed",
                           f"{algorithm.name} did not return the declared output(s) {', '.join(absent)}")
-    return RunOutcome(dict(outputs), values, "ok")
+    undeclared = sorted(set(outputs) - set(declared))
+    if undeclared:  # every stored dataset carries its declared unit and description
+        return RunOutcome({}, values, "failed", f"{algorithm.name} returned undeclared output(s) "
+                          f"{', '.join(undeclared)}; declare each as a Port in {algorithm.name}.outputs")
+    arrays = {name: np.asarray(outputs[name]) for name in declared}
+    unstorable = [f"{name} ({a.dtype})" for name, a in arrays.items() if a.dtype.kind in "OUMm"]
+    if unstorable:
+        return RunOutcome({}, values, "failed", f"{algorithm.name} returned output(s) HDF5 cannot store: "
+                          f"{', '.join(unstorable)}; return numbers, booleans or bytes (dtype 'S')")
+    return RunOutcome(arrays, values, "ok")
+
+
+#: A run label: a letter, then letters, digits, ``_``, ``-`` or ``.`` (it appears in ``@label/output``).
+LABEL_PATTERN = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}")
+
+
+def label_problem(label: str, algorithms: Collection[str]) -> str | None:
+    """Why ``label`` cannot name a run (``None`` if it can).
+
+    A label must match :data:`LABEL_PATTERN` and must not be the name of an algorithm in
+    ``algorithms``: ``@name/output`` would then be ambiguous.
+
+    >>> label_problem("first", ["derivatives"]) is None
+    True
+    >>> label_problem("derivatives", ["derivatives"])
+    "'derivatives' is the name of an algorithm; @derivatives/... would be ambiguous: choose another label"
+    """
+    if not LABEL_PATTERN.fullmatch(label):
+        return (f"{label!r} is not a run label: use a letter, then letters, digits, '_', '-' or '.' "
+                "(at most 64 characters), e.g. 'first_pass'")
+    if label in algorithms:
+        return f"{label!r} is the name of an algorithm; @{label}/... would be ambiguous: choose another label"
+    return None
 
 
 @dataclass(frozen=True)
 class ResultRef:
-    """Where one algorithm run is stored: ``/results/<algorithm>/<run_id>``."""
+    """Where one algorithm run is stored: ``/results/<algorithm>/<run_id>``.
+
+    ``status`` is ``ok``, ``failed``, ``cancelled`` or ``incomplete`` (no status stored: the
+    writing of the run was interrupted); ``label`` is the run label given to :meth:`Session.run`
+    (``""`` if none).
+    """
 
     algorithm: str
     run_id: str
     status: str
     error: str = ""
+    label: str = ""
 
     @property
     def path(self) -> str:

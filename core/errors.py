@@ -93,6 +93,13 @@ class AlgorithmError(MirrorlabError):
     """An algorithm failed on its inputs (degenerate geometry, singular fit, ...)."""
 
 
+class Cancelled(MirrorlabError):
+    """Stopped on request: :meth:`Session.request_stop` (or a run's cancel event) asked the work to end.
+
+    Not a failure: a cancelled algorithm run is stored with ``status = "cancelled"`` and no outputs.
+    """
+
+
 class AlgorithmInputError(ValidationError, AlgorithmError):
     """The inputs given to an algorithm do not match its declared ports (unknown or missing names).
 

@@ -250,6 +250,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     if analysis and controllers:
         problems.append(Problem("controllers", "a recipe run on an existing session (--session) declares no "
                                 "controllers: nothing acquires there", file))
+    problems += _run_label_problems(steps, file)
     if not steps and not problems:
         problems.append(Problem("steps", "the recipe has no [[steps]]; nothing would happen", file))
     if problems:
@@ -306,6 +307,28 @@ def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], 
             problems.append(Problem(f"{where}.instruments.{role}", f"{plan.plugin} {instrument!r} has no "
                                     f"live-settable {', '.join(not_live)}, which {cls.name} sets", file))
     return ControllerPlan(label, cls.name, settings, inputs, bound)
+
+
+def _run_label_problems(steps: Sequence[StepPlan], file: str) -> list[Problem]:
+    """Run labels (``as = "..."``) used twice, and ``@label/...`` inputs that name a later step's label."""
+    problems: list[Problem] = []
+    declared: dict[str, int] = {}
+    for step in steps:
+        if step.values.get("as"):
+            declared.setdefault(step.values["as"], step.index)
+    for step in steps:
+        label = step.values.get("as")
+        if label and declared[label] != step.index:
+            problems.append(Problem(f"steps.{step.index}.as", f"run label {label!r} is already used by "
+                                    f"steps.{declared[label]}; labels must be unique in a session", file))
+        inputs = step.values.get("inputs")
+        for name, ref in (inputs.items() if isinstance(inputs, Mapping) else ()):
+            named = ref[1:].partition("/")[0] if isinstance(ref, str) and ref.startswith("@") else None
+            if named in declared and declared[named] >= step.index:
+                problems.append(Problem(f"steps.{step.index}.inputs.{name}", f"{ref!r} names the run labelled "
+                                        f"{named!r} of steps.{declared[named]}, which has not run yet at this "
+                                        "step; refer to a label of an earlier step", file))
+    return problems
 
 
 def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str, where: str = "") -> dict:

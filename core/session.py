@@ -28,6 +28,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import socket
 import sys
 import threading
@@ -42,8 +43,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .algorithms import Algorithm, ResultRef, RunContext, execute
-from .clock import SessionClock, utc_now_iso
+from .algorithms import Algorithm, ResultRef, RunContext, execute, label_problem
+from .clock import SessionClock, parse_utc, utc_now_iso
 from .controller_runtime import ControllerRunner
 from .controllers import Controller
 from .devices import Instrument, SerialInstrument, SimulatorServer
@@ -67,6 +68,32 @@ SIMULATOR_OPTIONS = ParameterSet(
 )
 
 _PACKAGES = ("numpy", "scipy", "h5py", "pluggy", "pyserial", "opencv-python-headless", "textual", "rich")
+
+
+def _sha256(array: np.ndarray) -> str:
+    """Hex SHA-256 of an array's values in C order (its dtype and shape are stored beside it).
+
+    >>> _sha256(np.zeros(0))
+    'e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855'
+    """
+    return hashlib.sha256(np.ascontiguousarray(array).data).hexdigest()  # the buffer itself: no copy
+
+
+def _unit(declared: str, units: Mapping[str, str]) -> str:
+    """A declared output unit with each ``{input}`` replaced by that input's unit when it is known.
+
+    >>> _unit("{values}/s", {"values": "mm"}), _unit("{values}/s", {})
+    ('mm/s', '{values}/s')
+    """
+    return re.sub(r"\{(\w+)\}", lambda m: units.get(m[1]) or m[0], declared)
+
+
+def _dataset_unit(dataset: h5py.Dataset) -> str:
+    """The unit of a dataset: its own ``unit``, else its stream group's (``time_unit`` for ``time``)."""
+    own = schema.attr_str(dataset, "unit")
+    if own or "unit" not in dataset.parent.attrs:
+        return own
+    return schema.attr_str(dataset.parent, "time_unit" if dataset.name.endswith("/time") else "unit")
 
 
 @dataclass
@@ -101,7 +128,11 @@ class Session:
         self.writable = writable
         self.crashed = crashed
         self.registry = registry
-        self.clock = SessionClock()
+        origin = schema.attr_str(file, "clock_origin_utc")
+        # Schema 1 files have no stored origin: each opening restarts at 0, as it did then.
+        self.clock = SessionClock(parse_utc(origin) if origin else None)
+        #: Set by request_stop(): algorithm runs (and record) end cooperatively at their next check.
+        self._cancel = threading.Event()
         self.events = EventBus(self.clock)
         self.router = StreamRouter(on_overflow=self._on_overflow)
         self.instruments: dict[str, Instrument] = {}
@@ -171,11 +202,13 @@ class Session:
         except FileExistsError:
             raise SessionExistsError(path) from None
         try:
+            created = utc_now_iso()
             f.attrs.update({
                 "mirrorlab_schema": schema.SCHEMA_VERSION,
                 "mirrorlab_version": mirrorlab_version(),
                 "session_id": str(uuid.uuid4()),
-                "created_utc": utc_now_iso(),
+                "created_utc": created,
+                "clock_origin_utc": created,  # session time 0 of /log, streams and controllers
                 "operator": operator,
                 "description": description,
                 "status": "open",
@@ -819,7 +852,8 @@ class Session:
     # -- algorithms ------------------------------------------------------------------------------
     def run(self, algorithm: str | type[Algorithm], inputs: Mapping[str, str | np.ndarray],
             parameters: Mapping[str, Any] | None = None,
-            progress: Callable[[float, float | None, str], None] | None = None) -> ResultRef:
+            progress: Callable[[float, float | None, str], None] | None = None, *,
+            label: str | None = None) -> ResultRef:
         """Run an algorithm and store its result with provenance.
 
         Parameters
@@ -827,26 +861,45 @@ class Session:
         algorithm
             Registered name or class.
         inputs
-            Input name → dataset path in this file (``"/instruments/cam/frames/data"``) or array.
+            Input name → dataset path in this file (``"/instruments/cam/frames/data"``), result
+            reference (``"@algorithm/output"``, ``"@label/output"``, see :meth:`resolve`) or array.
         parameters
             Algorithm parameters (validated; defaults filled in and stored).
         progress
             Optional ``progress(done, total, message)`` callback (progress events are emitted too).
+        label
+            Run label (``as = "..."`` in a recipe's ``run`` step) so that ``@label/output`` names
+            this run's output even after later runs of the same algorithm. At most one successful
+            run of a session carries a label; see :func:`~mirrorlab.core.algorithms.label_problem`.
 
-        Returns the :class:`ResultRef`; a failed run is stored with ``status = "failed"`` and its
-        error, and nothing earlier is overwritten.
+        Returns the :class:`ResultRef`. The run is written as ``/results/<algorithm>/<run-id>``:
+        its outputs first, each with the ``unit`` and ``description`` of its declared
+        :class:`~mirrorlab.core.algorithms.Port`, and its ``status`` last, so a run whose writing was
+        interrupted has no status and reads as ``incomplete``. A failed run is stored with
+        ``status = "failed"`` and its error, a run stopped by :meth:`request_stop` (the event
+        ``self._cancel``) with ``status = "cancelled"``; neither has outputs, and nothing earlier
+        is overwritten.
         """
         self._require_writable("write results")
         cls = self.registry.algorithm(algorithm) if isinstance(algorithm, str) else algorithm
-        arrays, sources = {}, {}
+        label = label or ""
+        if label:
+            self._check_label(label, f"{cls.name}.label")
+        arrays, sources, units = {}, {}, {}
         for name, value in inputs.items():
             if isinstance(value, str):
                 path = self.resolve(value, f"inputs.{name}")
-                arrays[name] = self.file[path]  # read below, or in chunks by the executor's workers
+                dataset = self.file[path]
+                arrays[name] = dataset  # read below, or in chunks by the executor's workers
                 sources[name] = path
+                units[name] = _dataset_unit(dataset)
             else:
                 arrays[name] = np.asarray(value)
-                sources[name] = "<array>"
+        if self.executor is None:
+            arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
+        digests = {name: {"sha256": _sha256(a[()] if isinstance(a, h5py.Dataset) else a), "dtype": a.dtype.str,
+                          "shape": list(a.shape)} for name, a in arrays.items()}
+        sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
 
         def report(done: float, total: float | None, message: str) -> None:
             self.events.progress(cls.name, done, total, message)
@@ -855,30 +908,42 @@ class Session:
 
         self._commit()
         started = utc_now_iso()
-        if self.executor is None:
-            outcome = execute(cls, {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()},
-                              parameters or {}, RunContext(report))
-        else:
-            outcome = self.executor(self, cls, arrays, parameters or {}, RunContext(report))
-        finished = utc_now_iso()
+        with self.operation():  # request_stop() cancels the run at its next progress report
+            context = RunContext(report, self._cancel)
+            outcome = (execute(cls, arrays, parameters or {}, context) if self.executor is None
+                       else self.executor(self, cls, arrays, parameters or {}, context))
         group = self.file.require_group(f"results/{cls.name}")
         run_id = f"run-{len(group) + 1:04d}"
         while run_id in group:  # never overwrite
             run_id = f"run-{int(run_id[4:]) + 1:04d}"
         g = group.create_group(run_id)
-        g.attrs.update({"algorithm": cls.name, "plugin_version": cls.version, "started_utc": started,
-                        "finished_utc": finished, "status": outcome.status, "error": outcome.error})
+        g.attrs.update({"algorithm": cls.name, "plugin_version": cls.version, "label": label,
+                        "started_utc": started})
         schema.set_json(g, "parameters", to_jsonable(outcome.params))
         schema.set_json(g, "inputs", sources)
+        schema.set_json(g, "input_sha256", digests)
         if self.executor is not None:
             schema.set_json(g, "executor", self.executor.provenance)
-        if outcome.traceback:
-            g.attrs["traceback"] = outcome.traceback
-        for name, value in outcome.outputs.items():
-            g.create_dataset(name, data=np.asarray(value))
-        ref = ResultRef(cls.name, run_id, outcome.status, outcome.error)
-        self.events.emit("info" if outcome.status == "ok" else "error", cls.name, "result_written",
-                         f"{ref.path}: {outcome.status}{' — ' + outcome.error if outcome.error else ''}")
+        self.file.flush()  # the run's provenance is on disk before its outputs
+        ports = {p.name: p for p in cls.outputs}
+        try:
+            for name, value in outcome.outputs.items():
+                ds = g.create_dataset(name, data=value)
+                ds.attrs["unit"] = _unit(ports[name].unit, units)
+                ds.attrs["description"] = ports[name].description
+            g.attrs.update({"finished_utc": utc_now_iso(), "error": outcome.error})
+            if outcome.traceback:
+                g.attrs["traceback"] = outcome.traceback
+            self.file.flush()  # everything of the run is on disk before the status says so
+            g.attrs["status"] = outcome.status
+        except OSError as exc:  # a full disk: the run stays without status, read as "incomplete"
+            self.events.emit("error", cls.name, "result_incomplete",
+                             f"{g.name}: writing the run failed, it is left without status (incomplete)")
+            raise files.os_error(self.path, exc, "write to") from exc
+        ref = ResultRef(cls.name, run_id, outcome.status, outcome.error, label)
+        self.events.emit({"ok": "info", "cancelled": "warning"}.get(outcome.status, "error"), cls.name,
+                         "result_written", f"{ref.path}{f' ({label})' if label else ''}: {outcome.status}"
+                         f"{' — ' + outcome.error if outcome.error else ''}", label=label)
         self._write_pending_log()
         self.file.flush()
         for message in self.registry.notify("mirrorlab_result_written", session=self, result=ref):
@@ -905,33 +970,50 @@ class Session:
             self.file = files.open_writable(self.path)
             files.remove_lock(self.path)
 
+    def _check_label(self, label: str, key: str) -> None:
+        """Raise :class:`ValidationError` unless ``label`` can name a new successful run."""
+        reason = label_problem(label, {*self.registry.names("algorithm"), *self.file.get("results", {})})
+        taken = [r for r in self.results() if r.label == label and r.status == "ok"]
+        if reason is None and taken:
+            reason = f"label {label!r} already names {taken[0].path}; choose another label"
+        if reason is not None:
+            raise ValidationError([Problem(key, reason)])
+
     def resolve(self, reference: str, key: str = "dataset") -> str:
         """The dataset path a reference names.
 
-        ``/absolute/path`` names itself; ``@algorithm/output`` names ``output`` of the latest
-        successful run of ``algorithm`` in this session (how recipe steps chain results).
+        ``/absolute/path`` names itself; ``@name/output`` names ``output`` of the successful run
+        labelled ``name`` if there is one, else of the latest successful run of the algorithm
+        ``name`` in this session (how recipe steps chain results).
         """
-        if reference.startswith("@"):
-            algorithm, _, output = reference[1:].partition("/")
-            runs = [r for r in self.results(algorithm) if r.status == "ok"]
-            if not runs or not output:
-                raise ValidationError([Problem(key, f"{reference!r}: no successful run of {algorithm!r} "
-                                               "in this session yet (write @algorithm/output after its step)")])
-            path = f"{runs[-1].path}/{output}"
-        else:
+        if not reference.startswith("@"):
             path = reference
+        else:
+            name, _, output = reference[1:].partition("/")
+            runs = [r for r in self.results() if r.status == "ok" and name in (r.label, r.algorithm)]
+            labelled = [r for r in runs if r.label == name]
+            run = (labelled or runs or [None])[-1]
+            if run is None or not output:
+                raise ValidationError([Problem(key, f"{reference!r}: no successful run of {name!r} (an algorithm "
+                                               "or a run label) in this session yet (write @algorithm/output "
+                                               "or @label/output after its step)")])
+            path = f"{run.path}/{output}"
+            if output not in self.file[run.path]:
+                raise ValidationError([Problem(key, f"{reference!r}: {run.path} has no output {output!r}; it has: "
+                                               f"{', '.join(self.file[run.path]) or 'none'}")])
         if path.strip("/") not in self.file or not isinstance(self.file[path], h5py.Dataset):
             raise ValidationError([Problem(key, f"no dataset {path!r} in {self.path}")])
         return path
 
     def results(self, algorithm: str | None = None) -> list[ResultRef]:
-        """Stored runs, oldest first (of one algorithm, or all)."""
+        """Stored runs, oldest first (of one algorithm, or all); a run without status is ``incomplete``."""
         out = []
         for name, group in files.members(self.file, "results"):
             if algorithm is not None and name != algorithm:
                 continue
             for run_id, g in files.members(group):
-                out.append(ResultRef(name, run_id, schema.attr_str(g, "status"), schema.attr_str(g, "error")))
+                out.append(ResultRef(name, run_id, schema.run_status(g), schema.attr_str(g, "error"),
+                                     schema.attr_str(g, "label")))
         return out
 
     def result(self, ref: ResultRef | str) -> ResultData:
@@ -941,10 +1023,11 @@ class Session:
             raise SessionError(f"no result {path} in {self.path}")
         g = self.file[path]
         attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
-        for key in ("parameters", "inputs"):
+        for key in ("parameters", "inputs", "input_sha256"):
             attrs[key] = schema.get_json(g, key, {})
+        attrs["status"] = schema.run_status(g)
         parts = path.strip("/").split("/")
-        ref = ResultRef(parts[1], parts[2], attrs.get("status", ""), attrs.get("error", ""))
+        ref = ResultRef(parts[1], parts[2], attrs["status"], attrs.get("error", ""), attrs.get("label", ""))
         return ResultData(ref, {k: g[k][()] for k in g}, attrs)
 
     # -- reading ---------------------------------------------------------------------------------
@@ -978,7 +1061,11 @@ class Session:
         return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed,
                 "writer": files.live_writer(self.path) if self.crashed else None,
                 "instruments": instruments, "controllers": controllers, "groups": self._other_groups(),
-                "results": [{"path": r.path, "status": r.status, "error": r.error} for r in self.results()],
+                "results": [{"path": r.path, "status": r.status, "error": r.error, "label": r.label,
+                             "outputs": {name: {"shape": list(ds.shape), "dtype": str(ds.dtype),
+                                                "unit": schema.attr_str(ds, "unit")}
+                                         for name, ds in files.members(self.file, r.path)}}
+                            for r in self.results()],
                 "log_events": int(self.file["log"].shape[0]) if "log" in self.file else 0}
 
     @staticmethod

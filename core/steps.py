@@ -14,6 +14,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from .algorithms import label_problem
 from .errors import AlgorithmError, PluginError, Problem
 from .hookspecs import hookimpl
 from .params import Parameter, ParameterSet
@@ -26,7 +27,8 @@ if TYPE_CHECKING:
 
 #: The nested tables of a step that runs an algorithm (see :func:`algorithm_tables`).
 ALGORITHM_TABLES = {
-    "inputs": "input name = dataset path ('/instruments/cam/frames/data') or earlier result ('@algorithm/output')",
+    "inputs": "input name = dataset path ('/instruments/cam/frames/data') or earlier result ('@algorithm/output', "
+              "'@label/output')",
     "parameters": "the algorithm's parameters (`mirrorlab plugins show ALGORITHM` lists them)",
 }
 
@@ -110,7 +112,11 @@ class Wait(Step):
 class Run(Step):
     name = "run"
     description = "run an algorithm on datasets of the session and store its result"
-    parameters = ParameterSet(Parameter("algorithm", str, help="registered algorithm name"))
+    parameters = ParameterSet(
+        Parameter("algorithm", str, help="registered algorithm name"),
+        Parameter("as", str, "", help="run label, unique in the session: later steps name this run's "
+                                      "outputs '@label/output' (default: none)"),
+    )
     tables = ALGORITHM_TABLES
 
     @classmethod
@@ -126,10 +132,13 @@ class Run(Step):
             return values, [Problem(f"{where}.algorithm", str(exc), file)]
         inputs, params, problems = algorithm_tables(algorithm, table, where, file)
         values.update(inputs=inputs, parameters=params)
+        reason = label_problem(values["as"], registry.names("algorithm")) if values.get("as") else None
+        if reason:
+            problems.append(Problem(f"{where}.as", reason, file))
         return values, problems
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        ref = session.run(values["algorithm"], values["inputs"], values["parameters"])
+        ref = session.run(values["algorithm"], values["inputs"], values["parameters"], label=values["as"] or None)
         if ref.status != "ok":  # stored with its error; later steps would only fail on its absence
             raise AlgorithmError(f"{ref.path} failed: {ref.error}")
 
@@ -151,7 +160,8 @@ def algorithm_tables(algorithm: type[Algorithm], table: Mapping[str, Any], where
                                     f"it takes: {', '.join(sorted(declared)) or 'none'}", file))
         elif not isinstance(path, str) or not path.startswith(("/", "@")):
             problems.append(Problem(f"{where}.inputs.{name}", "must be an absolute dataset path such as "
-                                    "'/instruments/cam/frames/data' or a result '@algorithm/output'", file))
+                                    "'/instruments/cam/frames/data' or a result '@algorithm/output' "
+                                    "or '@label/output'", file))
     for p in algorithm.inputs:
         if not p.optional and p.name not in inputs and p.name not in provided:
             problems.append(Problem(f"{where}.inputs.{p.name}", f"required input of {algorithm.name} "

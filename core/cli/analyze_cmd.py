@@ -44,6 +44,8 @@ def add(sub: argparse._SubParsersAction) -> None:
         ins = ", ".join(f"{i.name} ({i.description})" for i in cls.inputs)
         p.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
                        help=f"input dataset paths; inputs: {ins or 'none'}")
+        p.add_argument("--as", dest="label", metavar="LABEL",
+                       help="run label: later inputs name this run's outputs @LABEL/OUTPUT (unique in the session)")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_parameter_options(p, cls.parameters)
         p.set_defaults(func=analyze, algorithm_name=name)
@@ -100,13 +102,14 @@ def analyze(args: argparse.Namespace) -> int:
     inputs, params = _checked(algorithm, args)
     with Session.open(args.session, writable=True) as s, progress_bar(not args.no_progress) as on_event:
         s.events.subscribe(on_event)
-        ref = s.run(algorithm, inputs, params)
+        ref = s.run(algorithm, inputs, params, label=args.label)
         if ref.status != "ok":  # stored with its error; said once, by main()
             raise AlgorithmError(f"{ref.path} failed: {ref.error}")
-        written = {name: (d.shape, d.dtype) for name, d in s.file[ref.path].items() if isinstance(d, h5py.Dataset)}
-    print(f"{args.session}: {ref.path}: ok")
-    for name, (shape, dtype) in written.items():
-        print(f"  {ref.path}/{name}: {shape} {dtype}")
+        written = {name: (d.shape, d.dtype, d.attrs.get("unit", "")) for name, d in s.file[ref.path].items()
+                   if isinstance(d, h5py.Dataset)}
+    print(f"{args.session}: {ref.path}" + (f" (@{ref.label})" if ref.label else "") + ": ok")
+    for name, (shape, dtype, unit) in written.items():
+        print(f"  {ref.path}/{name}: {shape} {dtype}" + (f" [{unit}]" if unit else ""))
     return 0
 
 

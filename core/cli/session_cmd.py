@@ -65,8 +65,10 @@ def info(args: argparse.Namespace) -> int:
     else:
         state = "  (left open by a crash: read through SWMR)" if data["crashed"] else ""
     print(f"{data['path']}: session {a.get('session_id')} [{a.get('status')}]{state}")
-    for key in ("created_utc", "operator", "description", "mirrorlab_version", "mirrorlab_schema"):
-        print(f"  {key}: {a.get(key)}")
+    for key in ("created_utc", "clock_origin_utc", "operator", "description", "mirrorlab_version",
+                "mirrorlab_schema"):
+        if key in a:  # a schema 1 file has no clock_origin_utc
+            print(f"  {key}: {a[key]}")
     for label, inst in data["instruments"].items():
         ident = inst["identity"]
         print(f"  instrument {label}: {inst['plugin']} {inst['version']}"
@@ -81,7 +83,11 @@ def info(args: argparse.Namespace) -> int:
         counts = [f"{g[k]} {k if g[k] != 1 else k[:-1]}" for k in ("datasets", "groups") if g[k]]
         print(f"  {path}: {', '.join(counts) or 'empty'}" + (f" ({g['description']})" if g["description"] else ""))
     for r in data["results"]:
-        print(f"  result {r['path']}: {r['status']}" + (f" — {r['error']}" if r["error"] else ""))
+        label = f" as {r['label']!r}" if r["label"] else ""
+        print(f"  result {r['path']}{label}: {r['status']}" + (f" — {r['error']}" if r["error"] else ""))
+        for name, out in r["outputs"].items():
+            shape = "×".join(map(str, out["shape"])) or "scalar"
+            print(f"    {name}: {shape} {out['dtype']}" + (f" [{out['unit']}]" if out["unit"] else ""))
     print(f"  log: {data['log_events']} events")
     return 0
 

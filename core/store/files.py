@@ -28,7 +28,7 @@ from typing import Any
 import h5py
 
 from ..errors import DamagedFileError, MirrorlabError, SessionError
-from .schema import LIBVER, ROOT_ATTRS, SCHEMA_VERSION, STATUSES, attr_str
+from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, required_root_attrs, run_status
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
 OPEN_FOR_WRITE = "file is already open for write"
@@ -247,10 +247,10 @@ def check(path: str | Path) -> CheckReport:
     f, crashed = open_readonly(path)
     report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path))
     with f, reading(path):
-        missing = [a for a in ROOT_ATTRS if a not in f.attrs]
+        report.schema = int(f.attrs["mirrorlab_schema"]) if "mirrorlab_schema" in f.attrs else None
+        missing = [a for a in required_root_attrs(report.schema) if a not in f.attrs]
         if missing:
             report.problems.append(f"missing root attributes: {', '.join(missing)} (not a mirrorlab session?)")
-        report.schema = int(f.attrs["mirrorlab_schema"]) if "mirrorlab_schema" in f.attrs else None
         if report.schema is not None and report.schema > SCHEMA_VERSION:
             report.problems.append(f"schema {report.schema} is newer than this mirrorlab ({SCHEMA_VERSION}); upgrade")
         report.status = attr_str(f, "status")
@@ -276,6 +276,11 @@ def check(path: str | Path) -> CheckReport:
                 if n_data != n_time:
                     report.problems.append(f"stream {label}/{name}: {n_data} samples but {n_time} times "
                                            "(cut off by a crash; readers use the shorter length)")
+        for algorithm, runs in members(f, "results"):
+            for run_id, run in members(runs):
+                if run_status(run) == INCOMPLETE:
+                    report.problems.append(f"result /results/{algorithm}/{run_id} has no status: its writing "
+                                           "was interrupted and its outputs may be partial; run it again")
     return report
 
 

@@ -1,4 +1,4 @@
-"""Session file schema v1: names, attribute helpers, stream and log datasets.
+"""Session file schema v2 (reads v1): names, attribute helpers, stream and log datasets.
 
 See ``docs/session-format.md`` for the full description. All functions here take open
 :class:`h5py.File` / :class:`h5py.Group` objects and do no I/O policy of their own.
@@ -15,14 +15,29 @@ import numpy as np
 from ..events import Event
 from ..streams import StreamSpec
 
-SCHEMA_VERSION = 1
+#: Schema 2 (over 1): root ``clock_origin_utc``, ``/controllers``, result runs with ``status``
+#: written last, ``label``, ``input_sha256`` and ``unit``/``description`` on every output.
+SCHEMA_VERSION = 2
 #: HDF5 format bounds: SWMR needs at least the 1.10 format; capping it there keeps session files
 #: readable by HDF5 1.10 tools (Debian's h5dump) and by every h5py since 2.10.
 LIBVER = ("v110", "v110")
 STATUSES = ("open", "closed", "aborted")
 ROOT_ATTRS = ("mirrorlab_schema", "mirrorlab_version", "session_id", "created_utc", "operator",
-              "description", "status")
-GROUPS = ("config", "instruments", "calibration", "results", "truth")
+              "description", "status", "clock_origin_utc")
+#: Root attributes that schema 1 files lack.
+NEW_IN_2 = ("clock_origin_utc",)
+#: Top-level groups every session file has from its creation (``/log`` is a dataset).
+GROUPS = ("config", "instruments", "controllers", "calibration", "results", "truth")
+#: Top-level groups the built-in plugins' steps add when they run (documented in session-format.md).
+PLUGIN_GROUPS = {
+    "markers": "kinematics `import_markers`: /markers/<name> marker sets",
+    "report": "pipeline `report` (/report, /report-2, ...) and mechanisms steps (/report/<name>): summaries",
+    "retarget": "retarget `retarget` step: /retarget/<name> retargeted motions",
+}
+#: ``status`` of a stored algorithm run. It is written after everything else of the run.
+RUN_STATUSES = ("ok", "failed", "cancelled")
+#: What readers report for a run group without ``status``: its writing was interrupted.
+INCOMPLETE = "incomplete"
 
 #: One row of ``/log``. Fixed-size fields: SWMR cannot grow variable-length data safely.
 LOG_DTYPE = np.dtype([
@@ -52,6 +67,18 @@ def get_json(obj: h5py.HLObject, name: str, default: Any = None) -> Any:
 def attr_str(obj: h5py.HLObject, name: str, default: str = "") -> str:
     raw = obj.attrs.get(name, default)
     return raw.decode() if isinstance(raw, bytes) else str(raw)
+
+
+def required_root_attrs(version: int | None) -> tuple[str, ...]:
+    """The root attributes a file of schema ``version`` must have (``None``: the current schema)."""
+    if version is not None and version < 2:
+        return tuple(a for a in ROOT_ATTRS if a not in NEW_IN_2)
+    return ROOT_ATTRS
+
+
+def run_status(run: h5py.Group) -> str:
+    """``status`` of a stored algorithm run, or :data:`INCOMPLETE` if it was never written."""
+    return attr_str(run, "status", INCOMPLETE)
 
 
 def create_stream(group: h5py.Group, spec: StreamSpec) -> h5py.Group:

@@ -160,9 +160,9 @@ class Derivatives(Algorithm):
     parameters = ParameterSet(*DERIVATIVE_PARAMETERS)
     inputs = (Port("time", "(T,) sample times", "s"),
               Port("values", "(T, ...) samples, e.g. markers (T, M, 3); NaN where missing"))
-    outputs = (Port("smoothed", "(T, ...) smoothed values", "unit"),
-               Port("velocity", "(T, ...) first derivative", "unit/s"),
-               Port("acceleration", "(T, ...) second derivative", "unit/s²"))
+    outputs = (Port("smoothed", "(T, ...) smoothed values", "{values}"),
+               Port("velocity", "(T, ...) first derivative", "{values}/s"),
+               Port("acceleration", "(T, ...) second derivative", "{values}/s²"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         t = _as_float(inputs, "time")
@@ -191,7 +191,7 @@ class Filter(Algorithm):
     )
     inputs = (Port("time", "(T,) sample times", "s"), Port("values", "(T, ...) samples, NaN where missing"))
     outputs = (Port("time", "(T',) times of the filtered samples (thesis: T' = T - 5, t_k + 2.5 T)", "s"),
-               Port("filtered", "(T', ...) filtered samples, NaN where missing", "unit"),
+               Port("filtered", "(T', ...) filtered samples, NaN where missing", "{values}"),
                Port("cutoff", "(...) Butterworth cut-off per channel (NaN for the other methods)", "Hz"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:

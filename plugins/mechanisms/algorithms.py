@@ -181,12 +181,15 @@ class ArcWallGrid(Algorithm):
         Parameter("strips", int, 3000, bounds=(10, 100_000), help="strips of the area quadrature"),
     )
     inputs = ()
-    outputs = (Port("c", "(nc,) centre abscissae"), Port("h", "(nh,) centre heights"),
-               Port("area", "(nh, nc) swept areas"), Port("best", "(3,) c, h, area of the minimum"))
+    outputs = (Port("c", "(nc,) centre abscissae, in units of the rod length l"),
+               Port("h", "(nh,) centre heights, in units of l"),
+               Port("area", "(nh, nc) swept areas, in units of l²"),
+               Port("best", "(3,) c, h (units of l), area (units of l²) of the minimum"))
 
     def run(self, inputs: Mapping[str, Any], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         context.progress(0, 1, "arc grid")
-        g = arc_grid(ARC_C, ARC_H, params["l"], params["positions"], params["strips"])
+        g = arc_grid(ARC_C, ARC_H, params["l"], params["positions"], params["strips"],
+                     progress=lambda done, total: context.progress(done, total, "arc grid"))
         context.progress(1, 1, "done")
         return {"c": g.c, "h": g.h, "area": g.area, "best": np.array(g.best)}
 
@@ -211,10 +214,13 @@ class OptimalWallAlgorithm(Algorithm):
         Parameter("maxiter", int, 400, bounds=(1, 100_000), help="solver iterations"),
     )
     inputs = ()
-    outputs = (Port("w", "(61,) wall abscissae at the nodes"), Port("nodes", "(61,) node heights y_i = 0.05 i l / 3"),
-               Port("area", "() converged exact area"), Port("area_positions", "() positions-only area, final grid"),
-               Port("area_thesis", "() positions-only area with thesis_positions positions"),
-               Port("area_grid", "() objective at the optimum"), Port("start_area", "() vertical wall (3 pi l²/32)"),
+    outputs = (Port("w", "(61,) wall abscissae at the nodes, in units of the rod length l"),
+               Port("nodes", "(61,) node heights y_i = 0.05 i l / 3, in units of l"),
+               Port("area", "() converged exact area, in units of l²"),
+               Port("area_positions", "() positions-only area, final grid, in units of l²"),
+               Port("area_thesis", "() positions-only area with thesis_positions positions, in units of l²"),
+               Port("area_grid", "() objective at the optimum, in units of l²"),
+               Port("start_area", "() area of the vertical wall (3 pi l²/32), in units of l²"),
                Port("iterations", "() solver iterations"), Port("evaluations", "() area evaluations"),
                Port("seconds", "() solver time", "s"))
 
@@ -222,7 +228,8 @@ class OptimalWallAlgorithm(Algorithm):
         context.progress(0, 1, f"optimal wall ({params['method']})")
         r = optimal_wall(params["method"], params["l"], (params["positions"], params["strips"]),
                          (params["final_positions"], params["final_strips"]), params["objective"],
-                         params["thesis_positions"], params["maxiter"])
+                         params["thesis_positions"], params["maxiter"],
+                         progress=lambda calls: context.progress(calls, None, "area evaluations"))
         context.progress(1, 1, "done")
         return {"w": r.w, "nodes": THESIS_WALL_NODES * params["l"] / 3.0, "area": r.area,
                 "area_positions": r.area_positions, "area_thesis": r.area_thesis, "area_grid": r.area_grid,

@@ -311,8 +311,12 @@ ARC_H = tuple(np.round(np.arange(2.0, 2.45, 0.1), 10))
 
 
 def arc_grid(c: ArrayLike = ARC_C, h: ArrayLike = ARC_H, l: float = 3.0,
-             positions: int = 4000, strips: int = 3000) -> ArcGrid:
+             positions: int = 4000, strips: int = 3000,
+             progress: Callable[[int, int], None] | None = None) -> ArcGrid:
     """The circular-arc grid search of Fig. 6.11 (default grid c = -1.4..-0.6, h = 2.0..2.4).
+
+    ``progress(done, total)``, if given, is called before each row of heights (``total`` rows);
+    an exception it raises (a cancelled run) ends the search.
 
     Examples
     --------
@@ -321,7 +325,11 @@ def arc_grid(c: ArrayLike = ARC_C, h: ArrayLike = ARC_H, l: float = 3.0,
     (-1.0, 2.2, 2.552)
     """
     cs, hs = np.round(np.asarray(c, float), 10), np.round(np.asarray(h, float), 10)
-    area = np.array([[strip_area(*wall_motion(arc_wall(ci, hi, l), l, positions), strips) for ci in cs] for hi in hs])
+    area = np.empty((hs.size, cs.size))
+    for j, hi in enumerate(hs):
+        if progress is not None:
+            progress(j, hs.size)
+        area[j] = [strip_area(*wall_motion(arc_wall(ci, hi, l), l, positions), strips) for ci in cs]
     j, i = np.unravel_index(np.argmin(area), area.shape)
     return ArcGrid(cs, hs, area, (float(cs[i]), float(hs[j]), float(area[j, i])))
 
@@ -396,7 +404,8 @@ def _fletcher_reeves(f: Callable[[FloatArray], tuple[float, FloatArray]], x0: Fl
 def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: float = 3.0,
                  grid: tuple[int, int] = (400, 1000), final: tuple[int, int] = (6000, 5000),
                  objective: Literal["exact", "positions"] = "exact", thesis_positions: int = 361,
-                 maxiter: int = 400, gtol: float = 1e-7, start: ArrayLike | None = None) -> OptimalWall:
+                 maxiter: int = 400, gtol: float = 1e-7, start: ArrayLike | None = None,
+                 progress: Callable[[int], None] | None = None) -> OptimalWall:
     """Minimise the swept area over the 59 wall abscissae of Fig. 6.12 (§6).
 
     The objective is the strip-formula area on ``grid`` (positions, strips); its gradient is exact
@@ -418,6 +427,8 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
     thesis_positions : positions of the thesis-like evaluation.
     maxiter, gtol : iteration limit and gradient-norm tolerance.
     start : initial inner abscissae (59); default the vertical wall (area 3 pi l^2 / 32).
+    progress : called as ``progress(evaluations)`` before each evaluation of the objective; an
+        exception it raises (a cancelled run) ends the optimisation.
 
     Returns
     -------
@@ -428,6 +439,8 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
 
     def f(x: FloatArray) -> tuple[float, FloatArray]:
         nonlocal calls
+        if progress is not None:
+            progress(calls)
         calls += 1
         return objective_fn(x)
 

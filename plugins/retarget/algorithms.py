@@ -103,7 +103,8 @@ class Retarget(Algorithm):
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         context.progress(0, 1, "retargeting")
         res = approximate(np.asarray(inputs["joints"], float), chain_from(params), params["method"],
-                          sweeps=params["sweeps"] or None, max_iter=params["max_iter"], distance=params["distance"])
+                          sweeps=params["sweeps"] or None, max_iter=params["max_iter"], distance=params["distance"],
+                          progress=lambda done, total: context.progress(done, total, "retargeting"))
         context.progress(1, 1, "done")
         return {"q": res.q, "f": res.f, "joints": res.joints, "residuals": res.residuals,
                 "iterations": res.iterations, "restarted": res.restarted, "pairs": res.pairs}

@@ -10,7 +10,7 @@ multistart when f jumps by more than a factor, and unwrap the angles so that the
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -247,8 +247,12 @@ def _bases(chain: Tree, ic: InputChain, base: Any) -> tuple[FloatArray, FloatArr
 
 def _track(tracker: Tracker, X: FloatArray, valid: NDArray[np.bool_], R: FloatArray, p: FloatArray,
            schedule: NDArray[np.int64], q_init: FloatArray, f_init: FloatArray,
-           has_init: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_]]:
-    """Run rows of frames in lockstep; ``schedule`` (B, S) holds frame indices, -1 for padding."""
+           has_init: NDArray[np.bool_], progress: Callable[[int, int], None] | None = None,
+           ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_]]:
+    """Run rows of frames in lockstep; ``schedule`` (B, S) holds frame indices, -1 for padding.
+
+    ``progress(s, S)`` is called before each lockstep ``s`` of ``S``.
+    """
     B, S = schedule.shape
     m = q_init.shape[1]
     q_out = np.full((B, S, m), np.nan)
@@ -257,6 +261,8 @@ def _track(tracker: Tracker, X: FloatArray, valid: NDArray[np.bool_], R: FloatAr
     rs_out = np.zeros((B, S), bool)
     q, f, has = q_init.copy(), f_init.copy(), has_init.copy()
     for s in range(S):
+        if progress is not None:
+            progress(s, S)
         frames = schedule[:, s]
         live = frames >= 0
         ok = live & valid[np.maximum(frames, 0)]
@@ -277,7 +283,8 @@ def approximate(input_joints: ArrayLike, chain: Tree, method: str = "lm", *, inp
                 q0: ArrayLike | None = None, sweeps: int | None = None, max_iter: int = 20,
                 multistart: bool | None = None, n_starts: int = 8, jump_factor: float = 2.0,
                 jump_abs: float | None = None, block: int = 32, drift_tol: float = 0.05,
-                flag_above: float = np.inf, seed: int = 0) -> Approximation:
+                flag_above: float = np.inf, seed: int = 0,
+                progress: Callable[[int, int], None] | None = None) -> Approximation:
     """Approximate the shape of an input chain by an output chain in every frame.
 
     Parameters
@@ -316,6 +323,9 @@ def approximate(input_joints: ArrayLike, chain: Tree, method: str = "lm", *, inp
         Input arm length tolerance (fraction) for the drift warning.
     flag_above : float
         Flag frames with f above this (mm²).
+    progress : callable, optional
+        Called as ``progress(done, total)`` between steps of the frame loop; an exception it raises
+        (a cancelled run) ends the approximation.
 
     Returns
     -------
@@ -340,9 +350,10 @@ def approximate(input_joints: ArrayLike, chain: Tree, method: str = "lm", *, inp
     T, m = ic.joints.shape[0], chain.dof
     start = np.zeros(m) if q0 is None else np.asarray(q0, float).reshape(m)
     if block and use_ms and T > 2 * block:
-        q, f, iters, restarted = _blocked(tracker, ic, R, p, start, block)
+        q, f, iters, restarted = _blocked(tracker, ic, R, p, start, block, progress)
     else:
-        out = _track(tracker, ic.joints, ic.valid, R, p, np.arange(T)[None], start[None], np.zeros(1), np.zeros(1, bool))
+        out = _track(tracker, ic.joints, ic.valid, R, p, np.arange(T)[None], start[None], np.zeros(1), np.zeros(1, bool),
+                     progress)
         q, f, iters, restarted = (a[0] for a in out)
     good = np.isfinite(f)
     joints = np.full((T, chain.n_links + 1, 3), np.nan)
@@ -361,7 +372,8 @@ SEAM_TOL = 1e-6
 
 
 def _blocked(tracker: Tracker, ic: InputChain, R: FloatArray, p: FloatArray, q0: FloatArray,
-             block: int) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_]]:
+             block: int, progress: Callable[[int, int], None] | None = None,
+             ) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_]]:
     """The sequential tracking result, computed as parallel blocks checked at their seams."""
     T, m = ic.joints.shape[0], q0.size
     firsts = np.arange(0, T, block)
@@ -373,7 +385,7 @@ def _blocked(tracker: Tracker, ic: InputChain, R: FloatArray, p: FloatArray, q0:
         schedule[b, : e - a + 1] = np.arange(a, e + 1)
     B = firsts.size
     rq, rf, rit, rrs = _track(tracker, ic.joints, ic.valid, R, p, schedule, np.tile(q0, (B, 1)), np.zeros(B),
-                              np.zeros(B, bool))
+                              np.zeros(B, bool), progress)
     q = np.full((T, m), np.nan)
     f = np.full(T, np.nan)
     iters = np.zeros(T, np.int64)

@@ -36,9 +36,10 @@ def recorded(tmp_path: Path, registry) -> Path:
 def test_file_layout_and_attributes(recorded: Path) -> None:
     with h5py.File(recorded, "r") as f:
         a = f.attrs
-        assert a["mirrorlab_schema"] == 1 and a["status"] == "closed" and a["operator"] == "ana"
+        assert a["mirrorlab_schema"] == 2 and a["status"] == "closed" and a["operator"] == "ana"
         assert len(a["session_id"]) == 36 and a["created_utc"].endswith("Z")
-        assert {"config", "instruments", "calibration", "results", "truth", "log"} <= set(f)
+        assert a["clock_origin_utc"] == a["created_utc"]
+        assert {"config", "instruments", "controllers", "calibration", "results", "truth", "log"} <= set(f)
         prov = json.loads(f["config/provenance"][()])
         assert prov["packages"]["h5py"] and "acme" in prov["plugins"]
         g = f["instruments/thermo"]

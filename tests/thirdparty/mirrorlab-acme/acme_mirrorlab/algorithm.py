@@ -17,7 +17,8 @@ class DriftRate(Algorithm):
         Parameter("skip", float, 0.0, unit="s", bounds=(0.0, None), help="ignore the first seconds"),
     )
     inputs = (Port("time", "(n,) sample times", "s"), Port("values", "(n,) samples"))
-    outputs = (Port("rate", "drift per second"), Port("offset", "value at t = 0"), Port("residual_rms", "fit RMS"))
+    outputs = (Port("rate", "() drift per second", "{values}/s"), Port("offset", "() value at t = 0", "{values}"),
+               Port("residual_rms", "() fit RMS", "{values}"))
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         t, v = np.asarray(inputs["time"], float), np.asarray(inputs["values"], float)
