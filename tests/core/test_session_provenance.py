@@ -261,7 +261,7 @@ def test_cancelled_run_is_stored_as_cancelled_and_overwrites_nothing(session_fil
                                                                           label="stopped")))
         worker.start()
         assert reported.wait(30)
-        s._cancel.set()  # what Session.request_stop() does
+        s.request_stop()
         cancel_sent.set()
         worker.join(30)
         assert not worker.is_alive()
