@@ -145,7 +145,10 @@ def _serve(jobs: Connection, results: Connection) -> None:
             arms, R_b, p_b, warm = jobs.recv()
         except EOFError:
             return
-        results.send(tracker.fallback(arms, R_b, p_b, warm))
+        try:
+            results.send(tracker.fallback(arms, R_b, p_b, warm))
+        except BrokenPipeError:                # the parent closed while this multistart ran: discarded
+            return
 
 
 if __name__ == "__main__":

@@ -90,6 +90,15 @@ def test_worker_is_the_synchronous_multistart_and_reports_its_exit() -> None:
             worker.submit(arms, np.eye(3), X[:, 0], warm.q)
 
 
+def test_closing_the_worker_during_a_multistart_discards_it_quietly(capfd: pytest.CaptureFixture[str]) -> None:
+    X = trap_stream()[:1]
+    compute = compute_for(X, T2_OUT)
+    worker = FallbackWorker(compute.tracker)
+    worker.submit(compute.objective.arms(X), np.eye(3), X[:, 0], np.zeros((1, 4)))
+    worker.close()                                   # the job may still run: its result goes nowhere
+    assert worker._proc.returncode == 0 and capfd.readouterr().err == ""
+
+
 def test_fallback_delay_is_validated() -> None:
     with pytest.raises(RetargetError, match="fallback_delay must be a whole number of frames >= 0 or None, got -1"):
         compute_for(trap_stream(), T2_OUT, fallback_delay=-1)
