@@ -10,7 +10,10 @@ numbers, so it runs almost entirely in the interpreter holding the GIL (numpy re
 in loops over large arrays). A worker thread would take the GIL from the compute, input and
 output threads in slices of ``sys.getswitchinterval()`` (5 ms) while it runs, against an 8.3 ms
 deadline at 120 Hz; a process has its own interpreter and competes only for a CPU core
-(``benchmarks/bench_retarget.py`` measures both, docs/retarget.md has the figures).
+(``benchmarks/bench_retarget.py`` measures both, docs/retarget.md has the figures). And a process
+can be given a lower CPU priority (:data:`WORKER_NICE`): on a busy machine the multistart then
+takes only spare CPU time and finishes later, instead of slowing the real-time path; a thread's
+priority cannot lower its claim on the GIL.
 
 Why a plain subprocess, not :mod:`multiprocessing`: its ``spawn`` and ``forkserver`` children
 re-import the caller's main script (an unguarded script would run again), and ``fork`` is unsafe
@@ -23,6 +26,7 @@ Units: mm, rad; f mm².
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from multiprocessing.connection import Connection, Pipe
@@ -41,6 +45,8 @@ FloatArray = NDArray[np.float64]
 
 #: Seconds the worker may take to start (import numpy and this package).
 START_TIMEOUT_S = 120.0
+#: Niceness the worker adds to its own: it is best-effort work beside a real-time loop.
+WORKER_NICE = 10
 
 
 class FallbackWorker:
@@ -138,6 +144,7 @@ class FallbackWorker:
 
 def _serve(jobs: Connection, results: Connection) -> None:
     """The worker's loop: receive the tracker, then one multistart per job, until the job pipe closes."""
+    os.nice(WORKER_NICE)
     tracker: Tracker = jobs.recv()
     results.send(None)                         # ready
     while True:
