@@ -6,14 +6,15 @@ publishes the warm-started solution on time and adopts the multistart's result o
 (:class:`.stream.Compute`).
 
 Why a process, not a thread: the multistart is hundreds of numpy calls on arrays of a few dozen
-numbers, so it runs almost entirely in the interpreter holding the GIL (numpy releases the GIL only
-in loops over large arrays). A worker thread would take the GIL from the compute, input and
-output threads in slices of ``sys.getswitchinterval()`` (5 ms) while it runs, against an 8.3 ms
-deadline at 120 Hz; a process has its own interpreter and competes only for a CPU core
-(``benchmarks/bench_retarget.py`` measures both, docs/retarget.md has the figures). And a process
-can be given a lower CPU priority (:data:`WORKER_NICE`): on a busy machine the multistart then
-takes only spare CPU time and finishes later, instead of slowing the real-time path; a thread's
-priority cannot lower its claim on the GIL.
+numbers, so it runs almost entirely holding the GIL (where numpy releases the GIL inside a call,
+that call's few microseconds are mostly argument handling and dispatch, which hold it). A worker
+thread would take the GIL from the compute, input and output threads in slices of
+``sys.getswitchinterval()`` (5 ms) while it runs, against an 8.3 ms deadline at 120 Hz; a process
+has its own interpreter and competes only for a CPU core (``benchmarks/bench_retarget.py``
+measures both, docs/retarget.md has the figures). And a process can be given a lower CPU priority
+(:data:`WORKER_NICE`): on a busy machine the multistart then takes only spare CPU time and
+finishes later, instead of slowing the real-time path; a thread's priority cannot lower its claim
+on the GIL.
 
 Why a plain subprocess, not :mod:`multiprocessing`: its ``spawn`` and ``forkserver`` children
 re-import the caller's main script (an unguarded script would run again), and ``fork`` is unsafe

@@ -140,7 +140,7 @@ class Compute:
         self._deferred = False
 
     def open(self) -> None:
-        """Start the background worker (if ``fallback_delay`` asks for one); calls before the clock starts."""
+        """Start the background worker if ``fallback_delay`` asks for one (call it before a clock starts)."""
         if self.background and self._worker is None:
             self._worker = self._start_worker(self.tracker)
 
