@@ -296,7 +296,7 @@ class Session:
 
     @property
     def attrs(self) -> dict[str, Any]:
-        return {k: (v.decode() if isinstance(v, bytes) else v.item() if hasattr(v, "item") else v)
+        return {k: (schema.text(v) if isinstance(v, (bytes, str)) else v.item() if hasattr(v, "item") else v)
                 for k, v in self.file.attrs.items()}
 
     def _require_writable(self, what: str) -> None:
@@ -1022,7 +1022,7 @@ class Session:
         if path.strip("/") not in self.file:
             raise SessionError(f"no result {path} in {self.path}")
         g = self.file[path]
-        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        attrs = {k: (schema.text(v) if isinstance(v, (bytes, str)) else v) for k, v in g.attrs.items()}
         for key in ("parameters", "inputs", "input_sha256"):
             attrs[key] = schema.get_json(g, key, {})
         attrs["status"] = schema.run_status(g)
@@ -1044,7 +1044,7 @@ class Session:
             if self.crashed or self.file.swmr_mode:
                 ds.refresh()
         n = min(g["data"].shape[0], g["time"].shape[0])
-        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        attrs = {k: (schema.text(v) if isinstance(v, (bytes, str)) else v) for k, v in g.attrs.items()}
         return StreamData(g["time"][:n], g["data"][:n], schema.attr_str(g, "unit"), attrs)
 
     def describe(self) -> dict[str, Any]:

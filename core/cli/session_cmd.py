@@ -56,6 +56,7 @@ def new(args: argparse.Namespace) -> int:
 def info(args: argparse.Namespace) -> int:
     with files.reading(args.file), Session.open(args.file) as s:
         data = s.describe()
+    data["not_utf8"] = _replaced(data)
     if args.json:
         print(json.dumps(data, indent=2, default=str))
         return 0
@@ -89,6 +90,9 @@ def info(args: argparse.Namespace) -> int:
             shape = "×".join(map(str, out["shape"])) or "scalar"
             print(f"    {name}: {shape} {out['dtype']}" + (f" [{out['unit']}]" if out["unit"] else ""))
     print(f"  log: {data['log_events']} events")
+    if data["not_utf8"]:
+        print(f"  note: text in the file that is not valid UTF-8, shown with \N{REPLACEMENT CHARACTER} for the bytes that "
+              f"could not be decoded: {', '.join(data['not_utf8'])}")
     return 0
 
 
@@ -98,6 +102,15 @@ def _print_streams(streams: dict[str, dict[str, Any]]) -> None:
         unit = f" [{st['unit']}]" if st["unit"] else ""
         n = st["samples"]
         print(f"    {name}: {n} sample{'' if n == 1 else 's'} of {sample}{st['dtype']}{unit}")
+
+
+def _replaced(data: object, where: str = "") -> list[str]:
+    """Where (dotted keys) the nested summary holds text with U+FFFD: bytes that were not UTF-8."""
+    if isinstance(data, dict):
+        return [w for k, v in data.items() for w in _replaced(v, f"{where}.{k}" if where else str(k))]
+    if isinstance(data, list):
+        return [w for i, v in enumerate(data) for w in _replaced(v, f"{where}[{i}]")]
+    return [where] if isinstance(data, str) and "\N{REPLACEMENT CHARACTER}" in data else []
 
 
 def tree(args: argparse.Namespace) -> int:

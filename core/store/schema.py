@@ -64,9 +64,21 @@ def get_json(obj: h5py.HLObject, name: str, default: Any = None) -> Any:
     return json.loads(raw.decode() if isinstance(raw, bytes) else raw)
 
 
+def text(raw: bytes | str) -> str:
+    """An attribute's text: UTF-8, with U+FFFD for bytes that are not UTF-8.
+
+    A name written by another tool in Latin-1 is shown, not taken for damage. h5py gives such bytes
+    of a variable-length string as lone surrogates (``surrogateescape``), which would reach a
+    terminal as the same invalid bytes; they are replaced as well.
+    """
+    if isinstance(raw, str):
+        raw = raw.encode("utf-8", "surrogateescape")
+    return raw.decode("utf-8", "replace")
+
+
 def attr_str(obj: h5py.HLObject, name: str, default: str = "") -> str:
     raw = obj.attrs.get(name, default)
-    return raw.decode() if isinstance(raw, bytes) else str(raw)
+    return text(raw) if isinstance(raw, (bytes, str)) else str(raw)
 
 
 def required_root_attrs(version: int | None) -> tuple[str, ...]:

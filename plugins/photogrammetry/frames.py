@@ -68,8 +68,15 @@ def _leading_valid(xy: FloatArray) -> NDArray[np.intp]:
     return np.where(seen.all(axis=1), seen.shape[1], np.argmin(seen, axis=1))
 
 
-def _per_frame(a: ArrayLike | None, shape: tuple[int, int], dtype: Any) -> NDArray | None:
-    return None if a is None else np.broadcast_to(np.asarray(a, dtype=dtype), shape)
+def _per_frame(a: ArrayLike | None, shape: tuple[int, ...], dtype: Any, name: str, needs: str) -> NDArray | None:
+    """``a`` broadcast to ``shape`` (frames, ...); :class:`InvalidArgument` naming ``name`` when it does not fit."""
+    if a is None:
+        return None
+    arr = np.asarray(a, dtype=dtype)
+    try:
+        return np.broadcast_to(arr, shape)
+    except ValueError:
+        raise InvalidArgument(f"{name} has shape {arr.shape}, but {needs}") from None
 
 
 def reconstruct_parallel_frames(
@@ -110,8 +117,10 @@ def reconstruct_parallel_frames(
     """
     xy = _frames_xy(image_xy, "image_xy")
     F, N = xy.shape[:2]
-    D = _per_frame(lengths, (F, N - 1), float)
-    s = _per_frame(signs, (F, N - 1), int)
+    needs = (f"image_xy has {F} frame(s) of {N} markers (0..{N - 1}): give {N - 1} per frame, shape ({N - 1},) or "
+             f"({F}, {N - 1}) (link n joins markers n-1 and n)")
+    D = _per_frame(lengths, (F, N - 1), float, "lengths", needs)
+    s = _per_frame(signs, (F, N - 1), int, "signs", needs)
     points = np.full((F, N, 3), np.nan)
     in_plane = np.zeros((F, N), bool)
     count = _leading_valid(xy)
@@ -175,10 +184,16 @@ def reconstruct_central_frames(
     """
     xy = _frames_xy(image_xy, "image_xy")
     F, N = xy.shape[:2]
-    D = _per_frame(lengths, (F, N), float)
-    s = _per_frame(signs, (F, N), int)
-    axy = None if aux_xy is None else _per_frame(aux_xy, (F, N, 2), float)
-    aD = _per_frame(aux_lengths, (F, N), float)
+    needs = (f"image_xy has {F} frame(s) of {N} markers (1..{N}; K, marker 0, is not imaged): give {N} per frame, "
+             f"shape ({N},) or ({F}, {N}), one per link, the first from K")
+    if np.ndim(lengths) >= 1 and np.shape(lengths)[-1] == N - 1:
+        needs += ("; image_xy has one marker more than lengths: if its first marker is K, leave it out "
+                  "(column j of image_xy is chain marker j + 1)")
+    D = _per_frame(lengths, (F, N), float, "lengths", needs)
+    s = _per_frame(signs, (F, N), int, "signs", needs)
+    axy = _per_frame(aux_xy, (F, N, 2), float, "aux_xy",
+                     f"image_xy has {F} frame(s) of {N} markers: give ({F}, {N}, 2), one auxiliary marker per link")
+    aD = _per_frame(aux_lengths, (F, N), float, "aux_lengths", needs)
     points = np.full((F, N, 3), np.nan)
     signs_out = np.zeros((F, N), int)
     tangent = np.zeros((F, N), bool)

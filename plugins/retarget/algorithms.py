@@ -75,10 +75,11 @@ def read_motion(path: Path, joints: list[str], scale: float = 1.0, skip: int = 0
 def stream_motion(motion: Motion, chain: Chain, params: Mapping[str, Any], sinks: list[Sink],
                   realtime: bool = False, rate: float = 0.0) -> tuple[FilterStats, MemorySink]:
     """Stream a recording through the filter at ``rate`` Hz (default: the recording's); returns the
-    counters and a memory sink holding every published frame."""
+    counters and a memory sink holding every published frame. In real time the multistart runs in
+    a worker process and is adopted when ready; otherwise on the frame that needs it."""
     memory = MemorySink()
     compute = Compute(chain, input_chain(motion.joints).lengths, params["method"], sweeps=params["sweeps"] or 3,
-                      max_iter=params["max_iter"], distance=params["distance"])
+                      max_iter=params["max_iter"], distance=params["distance"], fallback_delay=None if realtime else 0)
     stats = RetargetFilter(compute, rate or motion.rate, [memory, *sinks]).run(poses(motion.joints, motion.time),
                                                                                realtime)
     return stats, memory

@@ -21,7 +21,7 @@ from .chain import Tree, as_base
 from .correspondence import correspondence_pairs, serial_parents
 from .errors import InputChainError, RetargetError, TopologyError
 from .objective import Arms, Objective
-from .solvers import levenberg_marquardt, multistart, paper_sweeps, start_points
+from .solvers import Solution, levenberg_marquardt, multistart, paper_sweeps, start_points
 
 __all__ = ["approximate", "Approximation", "Tracker", "InputChain", "input_chain", "METHODS", "unwrap_to"]
 
@@ -157,31 +157,42 @@ class Tracker:
         total = float(objective.output.lengths.sum())
         self.jump_abs = (1e-3 * total) ** 2 if jump_abs is None else float(jump_abs)
 
+    def solve(self, q_prev: FloatArray, arms: Arms, R_b: FloatArray, p_b: FloatArray) -> Solution:
+        """The warm-started solve of B rows from ``q_prev`` (B, dof) rad: one LM solve or K sweeps."""
+        if self.method == "lm":
+            return levenberg_marquardt(self.objective, q_prev, arms, R_b, p_b, max_iter=self.max_iter)
+        return paper_sweeps(self.objective, q_prev, arms, R_b, p_b, sweeps=self.sweeps)
+
+    def triggers(self, f: FloatArray, f_prev: FloatArray, has_prev: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Rows (B,) that need the multistart: no previous frame, or f (mm²) jumped (spec §6)."""
+        if not self.use_multistart:
+            return np.zeros(f.shape, bool)
+        return ~has_prev | (f > self.jump_factor * f_prev + self.jump_abs)
+
+    def fallback(self, arms: Arms, R_b: FloatArray, p_b: FloatArray, warm: FloatArray) -> Solution:
+        """The multistart of B rows: the fixed starts and the warm solution ``warm`` (B, dof) rad."""
+        return multistart(self.objective, self.starts, arms, R_b, p_b, extra=warm)
+
     def step(self, q_prev: FloatArray, f_prev: FloatArray, has_prev: NDArray[np.bool_], arms: Arms,
              R_b: FloatArray, p_b: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64], NDArray[np.bool_],
                                                         FloatArray]:
         """Solve B rows of one step: angles (B, dof), f (B,), iterations (B,), restarted (B,), residuals (B, P, 3).
 
         ``q_prev`` is the warm start (the previous frame's angles, or the initial angles where
-        ``has_prev`` is False); ``arms`` the input arms of the B rows (:meth:`.Objective.arms`).
+        ``has_prev`` is False); ``arms`` the input arms of the B rows (:meth:`.Objective.arms`). The
+        multistart runs here, on the frame that needs it (synchronously).
         """
-        obj = self.objective
-        if self.method == "lm":
-            sol = levenberg_marquardt(obj, q_prev, arms, R_b, p_b, max_iter=self.max_iter)
-        else:
-            sol = paper_sweeps(obj, q_prev, arms, R_b, p_b, sweeps=self.sweeps)
+        sol = self.solve(q_prev, arms, R_b, p_b)
         q, f, iters, res = sol.q, sol.f, sol.iterations, sol.residuals
-        restarted = np.zeros(q.shape[0], bool)
-        if self.use_multistart:
-            restarted = ~has_prev | (f > self.jump_factor * f_prev + self.jump_abs)
-            rows = np.flatnonzero(restarted)
-            if rows.size:
-                ms = multistart(obj, self.starts, arms.take(rows), R_b[rows] if R_b.ndim == 3 else R_b,
-                                p_b[rows] if p_b.ndim == 2 else p_b, extra=q[rows])
-                q[rows], f[rows], res[rows] = ms.q, ms.f, ms.residuals
-                iters[rows] += ms.iterations
+        restarted = self.triggers(f, f_prev, has_prev)
+        rows = np.flatnonzero(restarted)
+        if rows.size:
+            ms = self.fallback(arms.take(rows), R_b[rows] if R_b.ndim == 3 else R_b, p_b[rows] if p_b.ndim == 2 else p_b,
+                               q[rows])
+            q[rows], f[rows], res[rows] = ms.q, ms.f, ms.residuals
+            iters[rows] += ms.iterations
         ref = np.where(has_prev[:, None], q_prev, 0.0)
-        return unwrap_to(q, ref, obj.output), f, iters, restarted, res
+        return unwrap_to(q, ref, self.objective.output), f, iters, restarted, res
 
 
 # ------------------------------------------------------------------------------------------------

@@ -40,8 +40,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                "rate_hz": args.rate or motion.rate, "mode": "realtime" if args.realtime else "deterministic",
                "output": {"lengths_mm": chain.lengths.tolist(), "axes": list(chain.axes), "dof": chain.dof},
                "method": params["method"], "f_mean_mm2": float(f.mean()) if f.size else None,
-               "f_max_mm2": float(f.max()) if f.size else None, "restarts": int(out["restarted"].sum()),
-               **stats.summary()}
+               "f_max_mm2": float(f.max()) if f.size else None, **stats.summary()}
     if args.figures:
         from .figures import plot_chains
 
@@ -55,7 +54,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"{motion.source}: {summary['frames']} frames at {summary['rate_hz']:g} Hz, {chain.dof}-DOF output, "
               f"{params['method']}: mean f {summary['f_mean_mm2']:.4g} mm², max {summary['f_max_mm2']:.4g} mm²")
         print(f"{summary['mode']}: {stats.published} published, {stats.dropped} dropped, {stats.missed_deadlines} "
-              f"missed deadlines, latency mean {summary['latency_mean_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms")
+              f"missed deadlines, latency mean {summary['latency_mean_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms; "
+              f"{stats.restarts} multistarts, {stats.late_adoptions} adopted late")
         if "figure" in summary:
             print(f"figure: {summary['figure']}")
     return 0
@@ -78,7 +78,8 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--scale", type=float, default=1.0, help="mm per file length unit (CMU BVH: 56.444)")
     p.add_argument("--skip", type=int, default=0, help="leading frames to drop (CMU BVH: 1, the T-pose)")
     p.add_argument("--rate", type=float, default=0.0, help="filter rate in Hz (default: the file's frame rate)")
-    p.add_argument("--realtime", action="store_true", help="run the threaded filter at the rate (default: every frame once)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run the threaded filter at the rate, the multistart in a worker process (default: every frame once)")
     p.add_argument("--csv", help="write every published frame to this CSV file")
     p.add_argument("--figures", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

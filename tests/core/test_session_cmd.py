@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import io
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +70,31 @@ def test_info_shows_units_only_when_declared_and_every_group(scanned: Path) -> N
         assert any(text in line for line in lines), (text, lines)
     groups = json.loads(run_cli("session", "info", str(scanned), "--json").stdout)["groups"]
     assert groups["/calibration/cam"] == {"datasets": 2, "groups": 0, "description": ""}
+
+
+def test_info_shows_text_that_is_not_utf8_with_replacement_characters_and_says_so(tmp_path: Path) -> None:
+    """Latin-1 text written by another tool: a fixed-length bytes attribute and a variable-length string
+    declared UTF-8 (h5py reads its bytes as lone surrogates); not a damaged file, never raw bytes out."""
+    import h5py
+
+    path = tmp_path / "latin1.h5"
+    with Session.create(path, operator="ana"):
+        pass
+    with h5py.File(path, "r+") as f:
+        f.attrs["operator"] = np.bytes_(b"J\xf6rg")
+        f.attrs.create("description", b"caf\xe9 lab", dtype=h5py.string_dtype("utf-8"))
+        f.create_group("report").attrs["description"] = np.bytes_(b"r\xe9sum\xe9")
+        f["report"].create_dataset("x", data=[1.0])
+    proc = subprocess.run([sys.executable, "-m", "mirrorlab.core.cli", "session", "info", str(path)], capture_output=True)
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout.decode("utf-8")                 # strict: no undecodable bytes reach the terminal
+    assert "operator: J\ufffdrg\n" in out and "description: caf\ufffd lab\n" in out
+    assert "/report: 1 dataset (r\ufffdsum\ufffd)" in out
+    assert ("note: text in the file that is not valid UTF-8, shown with \ufffd for the bytes that could not be "
+            "decoded: attributes.description, attributes.operator, groups./report.description") in out
+    data = json.loads(run_cli("session", "info", str(path), "--json").stdout)
+    assert data["attributes"]["operator"] == "J\ufffdrg"
+    assert data["not_utf8"] == ["attributes.description", "attributes.operator", "groups./report.description"]
 
 
 def test_export_names_columns_with_units(scanned: Path, tmp_path: Path, acme_site: Path) -> None:

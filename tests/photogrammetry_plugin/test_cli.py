@@ -165,6 +165,28 @@ def test_degenerate_geometry_exits_1_naming_frame_and_marker(tmp_path: Path) -> 
         assert [ref.status for ref in s.results("reconstruct_mirror")] == ["failed"]
 
 
+def test_central_with_marker_k_imaged_too_names_the_mismatch(tmp_path: Path) -> None:
+    """N + 1 markers (K included) for N lengths: one clear line naming lengths and image_xy, not numpy's
+    broadcasting error; a failed algorithm run, exit 1."""
+    from mirrorlab.plugins.photogrammetry.central import CentralCamera
+
+    cam = CentralCamera(2687.0, 54.0, np.radians(12.0))
+    z = np.sqrt(300.0 ** 2 - 200.0 ** 2 - 100.0 ** 2)
+    chain = cam.K + np.array([[0.0, 0.0, 0.0], [200.0, 100.0, -z], [400.0, 0.0, 0.0]])   # K, markers 1, 2
+    csv_in = _marker_csv(tmp_path / "k.csv", cam.project(chain)[None])
+    r = run_cli("reconstruct", "--method", "central", "--markers", str(csv_in), "--lengths", "300,300",
+                "--signs=-1,1", "--a", "2687", "--f", "54", "--alpha", "12 deg", "--out", str(tmp_path / "c.csv"),
+                "--no-progress")
+    assert r.returncode == 1 and len(r.stderr.strip().splitlines()) == 1
+    assert ("InvalidArgument: lengths has shape (2,), but image_xy has 1 frame(s) of 3 markers (1..3; K, marker 0, "
+            "is not imaged): give 3 per frame") in r.stderr
+    assert "if its first marker is K, leave it out" in r.stderr and "broadcast" not in r.stderr
+    r = run_cli("reconstruct", "--method", "parallel", "--markers", str(csv_in), "--lengths", "300,300,300",
+                "--signs=1,1,1", "--out", str(tmp_path / "p.csv"), "--no-progress")
+    assert r.returncode == 1 and ("lengths has shape (3,), but image_xy has 1 frame(s) of 3 markers (0..2): give 2 "
+                                  "per frame") in r.stderr
+
+
 def test_chessboard_square_is_required(tmp_path: Path) -> None:
     """No silent 1 mm squares: a calibration without --square would be off in scale by the square size."""
     r = run_cli("calibrate", "--images", str(CHESS), "--pattern", "10x7", "--json", "--no-progress")

@@ -7,7 +7,7 @@ import importlib
 
 import pytest
 
-MODULES = ["chain", "correspondence", "objective", "approximate", "algorithms", "figures"]
+MODULES = ["chain", "correspondence", "objective", "approximate", "algorithms", "figures", "fallback"]
 
 
 @pytest.mark.parametrize("name", MODULES)
