@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from mirrorlab.core.algorithms import execute
 from mirrorlab.core.store import schema
+from mirrorlab.instruments.film_scanner import virtual as virtual_source
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
 from mirrorlab.instruments.film_scanner.model import FilmScannerModel
 from mirrorlab.instruments.film_scanner.virtual import FILM_SIZE, virtual_film
-from mirrorlab.instruments.virtual_lab import source as virtual_source
 from mirrorlab.plugins.pipeline.algorithms import RSSRMarkers
 from mirrorlab.plugins.pipeline.report import pair_is_correct, scan_pixels
 
