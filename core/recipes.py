@@ -302,6 +302,23 @@ def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str
     return dict(value)
 
 
+def add_devices(session: Session, recipe: Recipe) -> None:
+    """Connect the recipe's instruments, then bind its controllers, in an open session (nothing
+    acquires yet): what ``mirrorlab run`` does before the first step and ``mirrorlab tui`` on opening."""
+    for plan in recipe.instruments:
+        session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
+                               simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,
+                               reconnect=plan.reconnect)
+    for c in recipe.controllers:
+        session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs, instruments=c.instruments)
+
+
+def recipe_record(recipe: Recipe) -> dict[str, Any]:
+    """What :meth:`Session.create` stores under ``/config`` for this recipe (text, overrides, path, effective)."""
+    return {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
+            "effective": json.loads(json.dumps(recipe.data, default=str))}
+
+
 def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
                on_session: Callable[[Session], None] | None = None, overwrite: bool = False) -> Path:
     """Run a validated recipe into a new session file; return its path.
@@ -316,23 +333,15 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
     and :class:`~mirrorlab.core.errors.StoppedOnRequest` raised after the file is closed. A
     :class:`KeyboardInterrupt` that gets through closes it ``aborted``, with the reason logged.
     """
-    record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
-              "effective": json.loads(json.dumps(recipe.data, default=str))}
     stopped = ""
-    with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
+    with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=recipe_record(recipe),
                         registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
         step = None
         try:
             with session.operation():
-                for plan in recipe.instruments:
-                    session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
-                                           simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,
-                                           reconnect=plan.reconnect)
-                for c in recipe.controllers:
-                    session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs,
-                                           instruments=c.instruments)
+                add_devices(session, recipe)
                 for step in recipe.steps:
                     if session.stop_requested:
                         break

@@ -41,6 +41,8 @@ CORE_COMMANDS = (
     Command("demo", "run the bundled demonstration recipe on simulated instruments", f"{__package__}.run_cmd:add"),
     Command("analyze", "run a registered algorithm on datasets of a session", f"{__package__}.analyze_cmd:add"),
     Command("record", "record one instrument (real or simulated) into a new session", f"{__package__}.analyze_cmd:add"),
+    Command("tui", "the operator console: live dashboard, recording, set-points, in the terminal",
+            f"{__package__}.tui_cmd:add"),
 )
 
 
