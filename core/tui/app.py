@@ -73,7 +73,7 @@ class MirrorlabApp(App[int]):
         self.poll_hz = poll_hz
         self.snapshot: SessionSnapshot | None = None
         self.close_error = ""
-        self._closing = False
+        self._quitting = False
         self._log_seen = 0
         self._faults: set[str] = set()  # instruments whose current fault has been shown
         self._recorder_error = ""
@@ -113,7 +113,7 @@ class MirrorlabApp(App[int]):
     # -- refreshing ------------------------------------------------------------------------------
     def refresh_view(self) -> None:
         """Poll the console and update every widget (the timer calls this at ``poll_hz``)."""
-        if self._closing:
+        if self._quitting:
             return
         snap = self.model.poll() if self.model.live else None
         self.snapshot = snap
@@ -251,9 +251,9 @@ class MirrorlabApp(App[int]):
 
     async def action_quit(self) -> None:
         """Stop acquiring and close the session file (in a thread: the screen stays alive), then exit."""
-        if self._closing:
+        if self._quitting:
             return
-        self._closing = True
+        self._quitting = True
         self.notify("closing the session…")
         try:
             await asyncio.to_thread(self.model.close)
