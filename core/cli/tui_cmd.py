@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import SessionError
 from .options import existing_path
 from .outputs import add_overwrite_option, cli_advice
-from .run_cmd import DEMO_OUTPUT, DEMO_RECIPE
+from .run_cmd import DEMO_OUTPUT, DEMO_RECIPE, print_summary
 
 #: Suffixes of session files (anything else is read as a recipe).
 SESSION_SUFFIXES = (".h5", ".hdf5")
@@ -51,5 +51,6 @@ def run(args: argparse.Namespace) -> int:
         console.close()  # idempotent: ctrl+q already closed it; any other exit closes it here
     if app.close_error:
         raise SessionError(f"{app.close_error}; the session file {console.session.path} was closed aborted")
-    print(f"session {console.session.status}: {console.session.path}")
+    if console.session.path.exists():  # a new session closed before it held anything leaves no file
+        print_summary(console.session.path)
     return code or 0

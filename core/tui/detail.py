@@ -70,7 +70,7 @@ class SourceScreen(Screen[None]):
             yield ParameterForm(controller.parameters, controller.settings, set(), id="form")
         for live_stream in model.source_streams(self.source):
             if live_stream.scalar:
-                pass  # yield StreamPlot(self.source, live_stream.spec.name)
+                yield StreamPlot(self.source, live_stream.spec.name)
         yield Footer()
 
     def on_mount(self) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from mirrorlab.core import Session
 from mirrorlab.core.tui.app import MirrorlabApp
-from mirrorlab.core.tui.detail import SourceScreen
+from mirrorlab.core.tui.detail import SourceScreen, StreamPlot
 from mirrorlab.core.tui.dialogs import FaultDialog, HelpScreen
 from mirrorlab.core.tui.model import Console
 from textual.pilot import Pilot
@@ -75,6 +75,7 @@ async def test_set_point_from_the_detail_form_is_validated_and_acknowledged(loop
         await pilot.press("down", "enter")  # the second row: the actuator
         await until(pilot, lambda: isinstance(app.screen, SourceScreen), "the detail screen opened")
         assert app.screen.source == "actuator"
+        assert [p.stream for p in app.screen.query(StreamPlot)] == ["position"]  # one live plot per scalar stream
         field = app.screen.query_one("#param-target", Input)
         assert not field.disabled and app.screen.query_one("#param-speed", Input).disabled  # only live ones edit
         field.value = "9 rad"
