@@ -313,6 +313,25 @@ def add_devices(session: Session, recipe: Recipe) -> None:
         session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs, instruments=c.instruments)
 
 
+def run_steps(session: Session, steps: Sequence[StepPlan], on_step: Callable[[StepPlan], None] | None = None) -> None:
+    """Execute ``steps`` in order on an open session, until one fails or a stop is requested.
+
+    ``on_step(step)`` is called as each step starts (a ``step`` event is logged too). A step that
+    raises because :meth:`Session.request_stop` interrupted it ends quietly; any other error propagates.
+    """
+    for step in steps:
+        if session.stop_requested:
+            return
+        if on_step is not None:
+            on_step(step)
+        session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}", index=step.index)
+        try:
+            step.cls().execute(session, step.values)
+        except MirrorlabError:
+            if not session.stop_requested:
+                raise
+
+
 def recipe_record(recipe: Recipe) -> dict[str, Any]:
     """What :meth:`Session.create` stores under ``/config`` for this recipe (text, overrides, path, effective)."""
     return {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
@@ -338,25 +357,18 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
                         registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
-        step = None
+        started: list[StepPlan] = []
         try:
             with session.operation():
                 add_devices(session, recipe)
-                for step in recipe.steps:
-                    if session.stop_requested:
-                        break
-                    session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
-                    try:
-                        step.cls().execute(session, step.values)
-                    except MirrorlabError:
-                        if not session.stop_requested:
-                            raise
+                run_steps(session, recipe.steps, started.append)
                 if session.stop_requested:
-                    where = f"during step {step.index} ({step.action})" if step is not None else "before the first step"
+                    where = (f"during step {started[-1].index} ({started[-1].action})" if started
+                             else "before the first step")
                     stopped = f"stopped on request {where}; later steps were not run"
                     session.close(reason=stopped)
         except KeyboardInterrupt:
-            where = f" during step {step.index} ({step.action})" if step is not None else ""
+            where = f" during step {started[-1].index} ({started[-1].action})" if started else ""
             session.close("aborted", reason=f"interrupted (Ctrl-C){where}")
             raise
     if stopped:

@@ -64,6 +64,7 @@ class MirrorlabApp(App[int]):
         Binding("p", "preview", "Preview"),
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
+        Binding("t", "steps", "Steps"),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
@@ -240,6 +241,14 @@ class MirrorlabApp(App[int]):
         if self._require_live():
             self.in_worker("stop", self.model.stop)
 
+    def action_steps(self) -> None:
+        if self.model.recipe is None:
+            self.notify("A session file has no recipe steps; open a recipe to run them.", severity="warning")
+            return
+        from .steps import StepsScreen
+
+        self.push_screen(StepsScreen())
+
     def action_open_source(self, source: str) -> None:
         from .detail import SourceScreen
 
@@ -266,6 +275,7 @@ class MirrorlabApp(App[int]):
         yield SystemCommand("Preview", "acquire without recording (p)", self.action_preview)
         yield SystemCommand("Record", "start or stop recording every instrument (r)", self.action_record)
         yield SystemCommand("Stop", "stop acquiring; a recording is written to the end (s)", self.action_stop)
+        yield SystemCommand("Steps", "the recipe's steps: run from one, see progress, cancel (t)", self.action_steps)
         for source in self.model.sources:
             yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",
                                 partial(self.action_open_source, source))

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..events import Event
-from ..recipes import Recipe, add_devices, load_recipe, recipe_record
+from ..recipes import Recipe, StepPlan, add_devices, load_recipe, recipe_record, run_steps
 from ..session import Session
 from ..snapshot import SessionSnapshot
 from ..streams import StreamSpec, Subscription
@@ -95,6 +95,9 @@ class Console:
         for label, runner in session.controllers.items():
             self._watch(label, runner.streams())
         self.closed = False
+        #: The recipe step running now (``None``: none), and the newest progress event.
+        self.current_step: StepPlan | None = None
+        self.progress: Event | None = None
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
@@ -127,7 +130,9 @@ class Console:
             self.streams[(source, spec.name)] = LiveStream(source, spec, sub)
 
     def _on_event(self, event: Event) -> None:
-        if event.kind != "progress":  # called in the publishing thread
+        if event.kind == "progress":
+            self.progress = event
+        else:  # called in the publishing thread
             with self._log_lock:
                 self.log.append(event)
                 self.logged += 1
@@ -189,6 +194,25 @@ class Console:
     def stop(self) -> None:
         """Stop acquiring (and the recording, written to the end)."""
         self.session.stop_acquisition()
+
+    def run_steps(self, start: int = 0) -> None:
+        """Run the recipe's steps from index ``start`` on this session (until one fails or
+        :meth:`cancel`); :attr:`current_step` says which one runs."""
+        if self.recipe is None:
+            return
+        try:
+            with self.session.operation():
+                run_steps(self.session, self.recipe.steps[start:], self._step_started)
+        finally:
+            self.current_step = None
+
+    def _step_started(self, step: StepPlan) -> None:
+        self.progress = None
+        self.current_step = step
+
+    def cancel(self) -> None:
+        """Ask the running step (or recording, or algorithm) to end cleanly; no later step runs."""
+        self.session.request_stop()
 
     def set_parameter(self, source: str, name: str, value: Any) -> Any:
         """Send one live parameter as a set-point; returns the value applied (in its unit)."""

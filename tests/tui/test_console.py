@@ -16,6 +16,7 @@ from mirrorlab.core.tui.app import MirrorlabApp
 from mirrorlab.core.tui.detail import SourceScreen, StreamPlot
 from mirrorlab.core.tui.dialogs import FaultDialog, HelpScreen
 from mirrorlab.core.tui.model import Console
+from mirrorlab.core.tui.steps import StepsScreen
 from textual.pilot import Pilot
 from textual.widgets import Input, Static
 
@@ -110,6 +111,33 @@ async def test_unplugged_device_shows_its_reconnect_countdown_then_failure(loop_
         assert loop_console.session.instruments["actuator"].state == "acquiring"  # the others keep going
 
 
+async def test_recipe_steps_run_with_progress_and_cancel(tmp_path: Path) -> None:
+    console = Console.from_recipe(LOOP, tmp_path / "steps.h5", ["steps.1.seconds=600"])
+    app = MirrorlabApp(console)
+    try:
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("t")
+            assert isinstance(app.screen, StepsScreen)
+            assert app.screen.query_one("#steps").row_count == 2
+            await pilot.press("enter")  # run from the first step: preview 1 s, then acquire 600 s
+            await until(pilot, lambda: console.current_step is not None and console.current_step.action == "acquire"
+                        and console.session.recording, "the acquire step records")
+            status = app.screen.query_one("#status", Static)
+            await until(pilot, lambda: "running step 1: acquire" in str(status.render()), "the running step shows")
+            await until(pilot, lambda: (app.screen.query_one("#progress").progress or 0) > 0, "progress moves")
+            await pilot.press("x")
+            await until(pilot, lambda: console.current_step is None and not console.session.recording,
+                        "the step ended on request")
+            await pilot.press("escape")
+            await app.run_action("quit")
+    finally:
+        console.close()
+    with Session.open(tmp_path / "steps.h5") as s:
+        assert s.status == "closed" and len(s.stream("sensor", "angle").data) > 0
+        steps = [e["message"] for e in s.log() if e["kind"] == "step"]
+    assert steps == ["step 0: preview", "step 1: acquire"]
+
+
 async def test_help_and_every_action_in_the_command_palette(loop_console: Console) -> None:
     app = MirrorlabApp(loop_console)
     async with app.run_test(size=SIZE) as pilot:
@@ -118,7 +146,7 @@ async def test_help_and_every_action_in_the_command_palette(loop_console: Consol
         await pilot.press("escape")
         assert not isinstance(app.screen, HelpScreen)
         titles = [c.title for c in app.get_system_commands(app.screen)]
-    keyed = {"help": "Help", "preview": "Preview", "record": "Record", "stop": "Stop", "quit": "Quit"}
+    keyed = {"help": "Help", "preview": "Preview", "record": "Record", "stop": "Stop", "steps": "Steps", "quit": "Quit"}
     assert {b.action for b in MirrorlabApp.BINDINGS} == set(keyed)
     assert set(keyed.values()) <= set(titles) and titles.count("Quit") == 1
     assert {"Open sensor", "Open actuator", "Open loop"} <= set(titles)
