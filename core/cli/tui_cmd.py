@@ -39,9 +39,9 @@ def run(args: argparse.Namespace) -> int:
     if path is not None and path.suffix.lower() in SESSION_SUFFIXES:
         console = Console.from_file(path)
     else:
-        out = args.out or (Path.cwd() / DEMO_OUTPUT / "tui.h5" if path is None else None)
+        root = Path.cwd() / DEMO_OUTPUT if path is None else None  # the demo writes under ./sessions/out
         with cli_advice("--out"):
-            console = Console.from_recipe(path or DEMO_RECIPE, out, args.overrides, args.overwrite)
+            console = Console.from_recipe(path or DEMO_RECIPE, args.out, args.overrides, args.overwrite, root)
     if not args.debug:  # the log pane shows the session's events; a stray log line would tear the screen
         logging.getLogger("mirrorlab").setLevel(logging.CRITICAL)
     app = MirrorlabApp(console)

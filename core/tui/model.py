@@ -102,15 +102,16 @@ class Console:
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
     def from_recipe(cls, path: str | Path, out: Path | None = None, overrides: list[str] | None = None,
-                    overwrite: bool = False) -> Console:
-        """A new session at ``out`` (default: ``out/`` beside the recipe) with the recipe's
+                    overwrite: bool = False, default_root: Path | None = None) -> Console:
+        """A new session at ``out`` (default: ``<recipe>-<UTC time>.h5`` in ``default_root``, or in
+        ``out/`` beside the recipe) with the recipe's
         instruments connected and controllers bound, nothing acquiring or recorded.
 
         Raises :class:`~mirrorlab.core.errors.ValidationError` (file, key, problem) for an invalid
         recipe before anything starts; a device that will not connect leaves no file.
         """
         recipe = load_recipe(path, overrides or [])
-        session = Session.create(out or recipe.default_output(), operator=recipe.operator,
+        session = Session.create(out or recipe.default_output(default_root), operator=recipe.operator,
                                  description=recipe.description, recipe=recipe_record(recipe), overwrite=overwrite)
         try:
             add_devices(session, recipe)
