@@ -339,6 +339,42 @@ def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str
     return dict(value)
 
 
+def add_devices(session: Session, recipe: Recipe) -> None:
+    """Connect the recipe's instruments, then bind its controllers, in an open session (nothing
+    acquires yet): what ``mirrorlab run`` does before the first step and ``mirrorlab tui`` on opening."""
+    for plan in recipe.instruments:
+        session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
+                               simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,
+                               reconnect=plan.reconnect)
+    for c in recipe.controllers:
+        session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs, instruments=c.instruments)
+
+
+def run_steps(session: Session, steps: Sequence[StepPlan], on_step: Callable[[StepPlan], None] | None = None) -> None:
+    """Execute ``steps`` in order on an open session, until one fails or a stop is requested.
+
+    ``on_step(step)`` is called as each step starts (a ``step`` event is logged too). A step that
+    raises because :meth:`Session.request_stop` interrupted it ends quietly; any other error propagates.
+    """
+    for step in steps:
+        if session.stop_requested:
+            return
+        if on_step is not None:
+            on_step(step)
+        session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}", index=step.index)
+        try:
+            step.cls().execute(session, step.values)
+        except MirrorlabError:
+            if not session.stop_requested:
+                raise
+
+
+def recipe_record(recipe: Recipe) -> dict[str, Any]:
+    """What :meth:`Session.create` stores under ``/config`` for this recipe (text, overrides, path, effective)."""
+    return {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
+            "effective": json.loads(json.dumps(recipe.data, default=str))}
+
+
 def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
                on_session: Callable[[Session], None] | None = None, overwrite: bool = False) -> Path:
     """Run a validated recipe into a new session file; return its path.
@@ -353,38 +389,23 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
     and :class:`~mirrorlab.core.errors.StoppedOnRequest` raised after the file is closed. A
     :class:`KeyboardInterrupt` that gets through closes it ``aborted``, with the reason logged.
     """
-    record = {"text": recipe.text, "overrides": recipe.overrides, "path": str(recipe.path),
-              "effective": json.loads(json.dumps(recipe.data, default=str))}
     stopped = ""
-    with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=record,
+    with Session.create(out, operator=recipe.operator, description=recipe.description, recipe=recipe_record(recipe),
                         registry=registry, overwrite=overwrite) as session:
         if on_session is not None:
             on_session(session)
-        step = None
+        started: list[StepPlan] = []
         try:
             with session.operation():
-                for plan in recipe.instruments:
-                    session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
-                                           simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,
-                                           reconnect=plan.reconnect)
-                for c in recipe.controllers:
-                    session.add_controller(c.label, c.plugin, settings=c.settings, inputs=c.inputs,
-                                           instruments=c.instruments)
-                for step in recipe.steps:
-                    if session.stop_requested:
-                        break
-                    session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")
-                    try:
-                        step.cls().execute(session, step.values)
-                    except MirrorlabError:
-                        if not session.stop_requested:
-                            raise
+                add_devices(session, recipe)
+                run_steps(session, recipe.steps, started.append)
                 if session.stop_requested:
-                    where = f"during step {step.index} ({step.action})" if step is not None else "before the first step"
+                    where = (f"during step {started[-1].index} ({started[-1].action})" if started
+                             else "before the first step")
                     stopped = f"stopped on request {where}; later steps were not run"
                     session.close(reason=stopped)
         except KeyboardInterrupt:
-            where = f" during step {step.index} ({step.action})" if step is not None else ""
+            where = f" during step {started[-1].index} ({started[-1].action})" if started else ""
             session.close("aborted", reason=f"interrupted (Ctrl-C){where}")
             raise
     if stopped:

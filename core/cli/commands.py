@@ -41,6 +41,8 @@ CORE_COMMANDS = (
     Command("record", "record one instrument (real or simulated) into a new session", f"{__package__}.analyze_cmd:add"),
     Command("simulate", "serve an instrument's simulator on a pty or TCP port", f"{__package__}.simulate_cmd:add"),
     Command("batch", "run an analysis recipe on many session files on Dask workers", "mirrorlab.core.batch.cli:add"),
+    Command("tui", "the operator console: live dashboard, recording, set-points, in the terminal",
+            f"{__package__}.tui_cmd:add"),
 )
 
 

@@ -99,6 +99,10 @@ CASES = [
     ("simulate", ["simulate", "no_such_instrument"], 2),
     ("simulate", ["simulate", "film_scanner", "--set", "source=folder"], 2),
     ("simulate", ["simulate", "actuator", "--pty", f"{D}/no-such-folder/tty"], 2),
+    ("tui", ["tui", "--help"], 0),
+    ("tui", ["tui", f"{D}/missing.toml"], 2),
+    ("tui", ["tui", f"{D}/failing.toml", "--set", "nope.x=1"], 2),  # invalid recipe: named before the screen opens
+    ("tui", ["tui", str(REPO / "sessions" / "scan_film.toml"), "--out", "/proc/mirrorlab-tui.h5"], 1),
     ("calibrate", ["calibrate", "--points", f"{D}/grid.csv", "--camera-center", ",".join(map(str, F1)), "--json"], 0),
     ("calibrate", ["calibrate", "--images", f"{D}/no-such-folder", "--pattern", "10x7", "--square", "25", "--json"], 2),
     ("calibrate", ["calibrate", "--images", f"{D}/blank", "--pattern", "10x7", "--json"], 2),  # --square missing

@@ -1,0 +1,288 @@
+"""The operator console: a Textual app over one :class:`~mirrorlab.core.tui.model.Console`.
+
+The dashboard is the app's main screen. A timer polls the console at :data:`POLL_HZ` (a snapshot
+and the live subscriptions, never a device or the file); actions that wait on devices or the
+disk run in worker threads, and their errors become dialogs that say what to do. Every key's
+action is also in the command palette (ctrl+p).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Iterable
+from functools import partial
+
+from rich.text import Text
+from textual.app import App, ComposeResult, SystemCommand
+from textual.binding import Binding
+from textual.renderables.sparkline import Sparkline
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, RichLog, Static
+
+from ..errors import MirrorlabError
+from ..events import Event
+from ..snapshot import InstrumentSnapshot, SessionSnapshot
+from .dialogs import ErrorDialog, FaultDialog, HelpScreen
+from .model import Console
+
+#: Dashboard refreshes per second.
+POLL_HZ = 10
+COLUMNS = ("source", "state", "value", "trend", "samples", "drops", "rec")
+STATE_STYLE = {"acquiring": "green", "running": "green", "reconnecting": "bold yellow", "failed": "bold red",
+               "connecting": "yellow"}
+LEVEL_STYLE = {"warning": "bold yellow", "error": "bold red", "debug": "dim"}
+#: What to do after an action failed, by the action's name.
+ADVICE = {
+    "record": "Nothing was lost: what was recorded is in the file. Check the instruments' states, then press r again.",
+    "preview": "Check the instrument named above (cable, power, port), then press p again.",
+    "stop": "Press s again; if an instrument does not stop, power-cycle it before using it again.",
+}
+
+
+def human_bytes(n: int) -> str:
+    """``1536`` → ``1.5 kB`` (powers of 1000, as disk tools print)."""
+    value = float(n)
+    for unit in ("B", "kB", "MB", "GB"):
+        if value < 1000 or unit == "GB":
+            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
+        value /= 1000
+    return f"{value:.1f} TB"
+
+
+class MirrorlabApp(App[int]):
+    """``mirrorlab tui``: the dashboard of one session, and the screens it opens."""
+
+    TITLE = "mirrorlab"
+    CSS = """
+    #info { height: 2; padding: 0 1; background: $boost; }
+    #sources { height: 1fr; min-height: 4; }
+    #identity { height: 1; padding: 0 1; color: $text-muted; }
+    #log { height: 7; border-top: solid $primary; }
+    """
+    BINDINGS = [
+        Binding("question_mark", "help", "Help"),
+        Binding("p", "preview", "Preview"),
+        Binding("r", "record", "Record"),
+        Binding("s", "stop", "Stop"),
+        Binding("t", "steps", "Steps"),
+        Binding("ctrl+q", "quit", "Quit", priority=True),
+    ]
+
+    def __init__(self, model: Console, poll_hz: float = POLL_HZ) -> None:
+        super().__init__()
+        self.model = model
+        self.poll_hz = poll_hz
+        self.snapshot: SessionSnapshot | None = None
+        self.close_error = ""
+        self._quitting = False
+        self._log_seen = 0
+        self._faults: set[str] = set()  # instruments whose current fault has been shown
+        self._recorder_error = ""
+        self.sub_title = model.session.path.name
+
+    # -- layout ----------------------------------------------------------------------------------
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield Static(id="info")
+        table: DataTable = DataTable(id="sources", cursor_type="row", zebra_stripes=True)
+        yield table
+        yield Static(id="identity", markup=False)
+        yield RichLog(id="log", max_lines=200, wrap=False, markup=False)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        table = self.query_one("#sources", DataTable)
+        for name, width in zip(COLUMNS, (10, 12, 12, 12, 7, 5, 3)):
+            table.add_column(name, width=width, key=name)
+        for source in self.model.sources:
+            table.add_row(source, *[""] * (len(COLUMNS) - 1), key=source)
+        if not self.model.live:
+            self._show_file_summary()
+        self.refresh_view()
+        self.set_interval(1 / self.poll_hz, self.refresh_view)
+
+    def _show_file_summary(self) -> None:
+        """A session file opened for browsing: its recorded streams and results in the log pane."""
+        info = self.model.session.describe()
+        log = self.query_one("#log", RichLog)
+        for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
+            for name, st in inst["streams"].items():
+                log.write(f"{label}/{name}: {st['samples']} samples {st['unit']}".rstrip())
+        for r in info["results"]:
+            log.write(f"{r['path']}: {r['status']}")
+
+    # -- refreshing ------------------------------------------------------------------------------
+    def refresh_view(self) -> None:
+        """Poll the console and update every widget (the timer calls this at ``poll_hz``)."""
+        if self._quitting:
+            return
+        snap = self.model.poll() if self.model.live else None
+        self.snapshot = snap
+        self.query_one("#info", Static).update(self._info_text(snap))
+        if snap is not None:
+            self._update_table(snap)
+            self._check_faults(snap)
+        self._update_identity()
+        self._update_log()
+
+    def _info_text(self, snap: SessionSnapshot | None) -> Text:
+        session = self.model.session
+        description = session.attrs.get("description", "") or "(no description)"
+        text = Text(f"{description}\n", overflow="ellipsis", no_wrap=True)
+        if snap is None:
+            text.append(f"session file, status {session.status}: browsing (read-only)", style="bold")
+            return text
+        if snap.recording:
+            text.append(f"● RECORDING {snap.recording_seconds:5.1f} s", style="bold red")
+        elif snap.acquiring:
+            text.append("▶ acquiring (preview, not recorded)", style="bold green")
+        else:
+            text.append("■ idle: p preview, r record", style="bold")
+        rec = snap.recorder
+        text.append(f"   queue {rec.queue}/{rec.capacity}   written {human_bytes(rec.bytes_written)}")
+        return text
+
+    def _update_table(self, snap: SessionSnapshot) -> None:
+        table = self.query_one("#sources", DataTable)
+        for source in self.model.sources:
+            inst = snap.instruments.get(source)
+            ctrl = snap.controllers.get(source)
+            state = inst.state if inst is not None else ctrl.state if ctrl is not None else "?"
+            live = next(iter(self.model.source_streams(source)), None)
+            value = live.describe_latest() if live is not None else "–"
+            trend = Sparkline(list(live.values)[-60:], width=12) if live is not None and len(live.values) > 1 else ""
+            if inst is not None:
+                counts = (str(inst.samples), str(inst.dropped), str(inst.reconnects))
+            else:
+                counts = (str(ctrl.commands), str(ctrl.failed_commands), "") if ctrl is not None else ("", "", "")
+            cells = (Text(state, style=STATE_STYLE.get(state, "")), value, trend, *counts)
+            for column, cell in zip(COLUMNS[1:], cells):
+                table.update_cell(source, column, cell)
+
+    def _update_identity(self) -> None:
+        table = self.query_one("#sources", DataTable)
+        source = self.selected_source()
+        line = "" if source is None else f"{source}: {self.model.identity(source)}"
+        if source is not None and self.snapshot is not None:
+            ctrl = self.snapshot.controllers.get(source)
+            if ctrl is not None and ctrl.latency is not None:
+                line += f" · latency p99 {1000 * ctrl.latency.p99:.1f} ms"
+        if table.row_count:
+            self.query_one("#identity", Static).update(line)
+
+    def _update_log(self) -> None:
+        events, self._log_seen = self.model.events_since(self._log_seen)
+        log = self.query_one("#log", RichLog)
+        for event in events:
+            log.write(log_line(event))
+
+    def _check_faults(self, snap: SessionSnapshot) -> None:
+        """Open the fault dialog once per drop-out; the recorder's error once per recording."""
+        for label, inst in snap.instruments.items():
+            if inst.state in ("reconnecting", "failed") and label not in self._faults:
+                self._faults.add(label)
+                self.push_screen(FaultDialog(label, partial(self._instrument_snapshot, label)))
+            elif inst.state == "acquiring":
+                self._faults.discard(label)
+        error = snap.recorder.error
+        if error and error != self._recorder_error:
+            self._recorder_error = error
+            self.show_error("Recording failed", f"The recorder could not write the file: {error}",
+                            "What was written before is kept. Free disk space (or choose another --out), "
+                            "then press r to record again.")
+
+    def _instrument_snapshot(self, label: str) -> InstrumentSnapshot | None:
+        return None if self.snapshot is None else self.snapshot.instruments.get(label)
+
+    def selected_source(self) -> str | None:
+        table = self.query_one("#sources", DataTable)
+        if not table.row_count:
+            return None
+        return self.model.sources[min(table.cursor_row, table.row_count - 1)]
+
+    # -- actions ---------------------------------------------------------------------------------
+    def show_error(self, title: str, message: str, advice: str = "") -> None:
+        self.push_screen(ErrorDialog(title, message, advice))
+
+    def in_worker(self, what: str, fn: Callable[[], object], done: Callable[[object], None] | None = None) -> None:
+        """Run ``fn`` in a worker thread; an error becomes a dialog naming ``what`` failed."""
+        def work() -> None:
+            try:
+                result = fn()
+            except MirrorlabError as exc:
+                self.call_from_thread(self.show_error, f"Could not {what}", str(exc), ADVICE.get(what, ""))
+            except Exception as exc:  # a driver bug: still a message, never a traceback on screen
+                self.call_from_thread(self.show_error, f"Could not {what}", f"{type(exc).__name__}: {exc}",
+                                      ADVICE.get(what, ""))
+            else:
+                if done is not None:
+                    self.call_from_thread(done, result)
+        self.run_worker(work, thread=True, group="actions", name=what)
+
+    def _require_live(self) -> bool:
+        if not self.model.live:
+            self.notify("This session file is open for browsing; open a recipe to acquire and record.",
+                        severity="warning")
+        return self.model.live
+
+    def action_help(self) -> None:
+        self.push_screen(HelpScreen())
+
+    def action_preview(self) -> None:
+        if self._require_live():
+            self.in_worker("preview", self.model.preview)
+
+    def action_record(self) -> None:
+        if self._require_live():
+            self.in_worker("record", self.model.toggle_recording,
+                           lambda recording: self.notify("recording" if recording else "recording stopped and written"))
+
+    def action_stop(self) -> None:
+        if self._require_live():
+            self.in_worker("stop", self.model.stop)
+
+    def action_steps(self) -> None:
+        if self.model.recipe is None:
+            self.notify("A session file has no recipe steps; open a recipe to run them.", severity="warning")
+            return
+        from .steps import StepsScreen
+
+        self.push_screen(StepsScreen())
+
+    def action_open_source(self, source: str) -> None:
+        from .detail import SourceScreen
+
+        self.push_screen(SourceScreen(source))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        if event.row_key.value is not None:
+            self.action_open_source(str(event.row_key.value))
+
+    async def action_quit(self) -> None:
+        """Stop acquiring and close the session file (in a thread: the screen stays alive), then exit."""
+        if self._quitting:
+            return
+        self._quitting = True
+        self.notify("closing the session…")
+        try:
+            await asyncio.to_thread(self.model.close)
+        except Exception as exc:  # e.g. the recorder failed: the file is closed aborted
+            self.close_error = str(exc) if isinstance(exc, MirrorlabError) else f"{type(exc).__name__}: {exc}"
+        self.exit(1 if self.close_error else 0)
+
+    def get_system_commands(self, screen: Screen) -> Iterable[SystemCommand]:
+        yield SystemCommand("Help", "the keys and what they do (?)", self.action_help)
+        yield SystemCommand("Preview", "acquire without recording (p)", self.action_preview)
+        yield SystemCommand("Record", "start or stop recording every instrument (r)", self.action_record)
+        yield SystemCommand("Stop", "stop acquiring; a recording is written to the end (s)", self.action_stop)
+        yield SystemCommand("Steps", "the recipe's steps: run from one, see progress, cancel (t)", self.action_steps)
+        for source in self.model.sources:
+            yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",
+                                partial(self.action_open_source, source))
+        yield SystemCommand("Quit", "stop acquiring, close the session file and leave (ctrl+q)", self.action_quit)
+        yield from (c for c in super().get_system_commands(screen) if c.title not in ("Quit",))
+
+
+def log_line(event: Event) -> Text:
+    """One log tail line: session time, source, message; warnings and errors highlighted."""
+    return Text(f"{event.t:8.2f}  {event.source}: {event.message}", style=LEVEL_STYLE.get(event.level, ""))

@@ -1,0 +1,111 @@
+"""Modal screens: help, errors that say what to do, and the device-fault dialog with its countdown."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Static
+
+from ..snapshot import InstrumentSnapshot
+
+HELP = """\
+[b]mirrorlab operator console[/b]
+
+[b]?[/b]        this help            [b]ctrl+p[/b]   every action (command palette)
+[b]p[/b]        preview: acquire, record nothing
+[b]r[/b]        start / stop recording (all instruments)
+[b]s[/b]        stop acquiring (ends a recording, written to the end)
+[b]t[/b]        the recipe's steps: run from one, progress, x cancels
+[b]enter[/b]    details of the selected instrument or controller:
+         settings, live set-points, live plots
+[b]esc[/b]      back / close a dialog
+[b]ctrl+q[/b]   quit: stops acquiring and closes the session file
+
+Warnings in the log are yellow, errors red. A device that drops out
+reconnects by itself within its budget; a dialog counts down meanwhile.\
+"""
+
+
+class _Dialog(ModalScreen[None]):
+    """A centred box with a title and a body; esc or enter closes it."""
+
+    DEFAULT_CSS = """
+    _Dialog { align: center middle; }
+    _Dialog > Vertical { width: 72; max-width: 100%; height: auto; max-height: 100%;
+                         border: thick $primary; background: $surface; padding: 0 1; }
+    _Dialog .title { text-style: bold; margin-bottom: 1; }
+    _Dialog.error > Vertical { border: thick $error; }
+    _Dialog.warning > Vertical { border: thick $warning; }
+    """
+    BINDINGS = [Binding("escape", "close", "Close"), Binding("enter", "close", "Close", show=False)]
+
+    def __init__(self, title: str, body: str, kind: str = "") -> None:
+        super().__init__(classes=kind)
+        self.title_text, self.body = title, body
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Static(self.title_text, classes="title", markup=False)
+            yield Static(self.body, id="body", markup=self.markup)
+
+    markup = False
+
+    def action_close(self) -> None:
+        self.dismiss(None)
+
+
+class HelpScreen(_Dialog):
+    """The keys, on ``?``."""
+
+    markup = True
+    BINDINGS = [*_Dialog.BINDINGS, Binding("question_mark", "close", "Close", show=False)]
+
+    def __init__(self) -> None:
+        super().__init__("Help", HELP)
+
+
+class ErrorDialog(_Dialog):
+    """An error in plain words: what happened and what to do (never a traceback)."""
+
+    def __init__(self, title: str, message: str, advice: str = "") -> None:
+        super().__init__(title, message + (f"\n\n{advice}" if advice else "") + "\n\n(esc to close)", "error")
+
+
+class FaultDialog(_Dialog):
+    """A device that dropped out: its reconnect countdown, live, until it is back or has failed.
+
+    ``watch()`` returns the instrument's newest snapshot; the dialog closes itself when the
+    instrument acquires again.
+    """
+
+    def __init__(self, label: str, watch: Callable[[], InstrumentSnapshot | None]) -> None:
+        super().__init__(f"{label}: connection lost", "", "warning")
+        self.label, self.watch = label, watch
+
+    def on_mount(self) -> None:
+        self.refresh_text()
+        self.set_interval(0.25, self.refresh_text)
+
+    def refresh_text(self) -> None:
+        snap = self.watch()
+        if snap is None or snap.state == "acquiring":
+            self.app.notify(f"{self.label} is back: reconnected, acquiring again")
+            self.dismiss(None)
+            return
+        self.query_one("#body", Static).update(fault_text(snap))
+
+
+def fault_text(snap: InstrumentSnapshot) -> str:
+    """What the fault dialog says about an instrument that dropped out (or failed)."""
+    if snap.state == "failed":
+        return (f"{snap.label} ({snap.plugin}) has failed: {snap.error or 'no reason given'}.\n\n"
+                "Check the cable and the power of the device, then press p to acquire again.\n\n(esc to close)")
+    left = snap.reconnect_seconds_left
+    budget = "trying until it answers" if left is None else f"{left:.0f} s left of its reconnect budget"
+    return (f"{snap.label} ({snap.plugin}) stopped answering. Reconnecting: {budget}.\n\n"
+            "Check the cable and the power of the device. It resumes by itself when it answers; "
+            "the other instruments keep going.\n\n(esc to hide)")
