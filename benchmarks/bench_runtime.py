@@ -13,6 +13,9 @@ Run: ``python benchmarks/bench_runtime.py [--seconds 10]``
    busy homing (a command of more than 10 s in real time). Goal: never more than 5 ms.
 3. **Stop.** ``stop_acquisition()`` during that command (the driver sends ``ABORT``). Goal:
    under 1 s, with no acquisition thread left.
+4. **Active mirror.** The host-side loop of thesis §4.4: the ``ultrasonic_tracker``'s direction
+   stream → ``follow_target`` (θt = θv / 2) → ``mirror_gimbal`` set-points, recorded. Goal: p99
+   latency < 20 ms.
 
 Prints one table per part with ratios to its baseline. Exit code 0; the goals are reported, not
 asserted (a busy machine says so, it does not fail a build).
@@ -75,6 +78,19 @@ def closed_loop(root: Path, seconds: float, camera: Path | None) -> dict[str, ob
             "dropped": sum(v["dropped"] for v in stats.values())}
 
 
+def active_mirror(root: Path, seconds: float) -> np.ndarray:
+    """Latencies (s) of the tracker -> follow_target -> gimbal loop over ``seconds`` of recording."""
+    path = root / "active.h5"
+    with Session.create(path) as s:
+        s.add_instrument("tracker", "ultrasonic_tracker", simulate=True)
+        s.add_instrument("mirror", "mirror_gimbal", simulate=True)
+        s.add_controller("loop", "follow_target", inputs={"direction": "tracker/direction"},
+                         instruments={"mirror": "mirror"})
+        s.record(seconds)
+    with h5py.File(path, "r") as f:
+        return f["controllers/loop/latency/data"][()]
+
+
 def busy_device(root: Path) -> dict[str, object]:
     with Session.create(root / "busy.h5") as s:
         cam = s.add_instrument("cam", "film_scanner", simulate=True, simulator={"clock": "REAL"})
@@ -118,6 +134,7 @@ def main() -> int:
         alone = closed_loop(root, args.seconds, None)
         loaded = closed_loop(root, args.seconds, camera)
         busy = busy_device(root)
+        mirror = active_mirror(root, args.seconds)
     ping = percentiles(alone["ping"] * 1e3)  # type: ignore[operator]
     base = percentiles(alone["latency"] * 1e3)  # type: ignore[operator]
     print("\n1. closed loop: input sample -> acknowledged set-point (ms)")
@@ -141,6 +158,11 @@ def main() -> int:
     print("\n3. stop_acquisition() during HOME")
     print(f"returned in {busy['stop']:.3f} s (goal < 1 s: {'met' if busy['stop'] < 1 else 'MISSED'}); "
           f"threads left: {busy['left'] or 'none'}; instrument state: {busy['state']}")
+    m = percentiles(mirror * 1e3)
+    print("\n4. active mirror: ultrasonic_tracker -> follow_target -> mirror_gimbal (ms)")
+    print(f"{'n':>6s} {'p50':>7s} {'p99':>7s} {'max':>7s} {'p99 x angle loop alone':>23s}")
+    print(f"{len(mirror):6d} {m[0]:7.2f} {m[1]:7.2f} {m[2]:7.2f} {m[1] / base[1]:23.2f}")
+    print(f"goal p99 < 20 ms: {'met' if m[1] < 20 else 'MISSED'} ({m[1]:.2f} ms)")
     return 0
 
 

@@ -79,12 +79,13 @@ def _mirrorlab_append(path: Path, spec: StreamSpec, blocks: list[tuple[np.ndarra
     f.flush()
     f.swmr_mode = True
     router = StreamRouter(queue_blocks=len(blocks))
-    router.recording = True
+    router.start_recording(["bench"])
     t = time.perf_counter()
     for times, values in blocks:
         router.publish("bench", spec.name, times, values)
     publish_us = 1e6 * (time.perf_counter() - t) / len(blocks)
-    recorder = _BatchLog(f, router, EventBus(SessionClock()), flush_interval=FLUSH_INTERVAL, batch_blocks=cap)
+    recorder = _BatchLog(f, router, EventBus(SessionClock()), {("bench", spec.name): f"instruments/bench/{spec.name}"},
+                         flush_interval=FLUSH_INTERVAL, batch_blocks=cap)
     wall, cpu = time.perf_counter(), time.process_time()
     recorder.start()
     recorder.stop()  # writes everything queued, flushes, joins

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import SessionError
 from .options import existing_path
 from .outputs import add_overwrite_option, cli_advice
-from .run_cmd import DEMO_OUTPUT, DEMO_RECIPE, print_summary
+from .run_cmd import DEMO_ACQUIRE, DEMO_OUTPUT, print_summary
 
 #: Suffixes of session files (anything else is read as a recipe).
 SESSION_SUFFIXES = (".h5", ".hdf5")
@@ -19,7 +19,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("tui", help="the operator console: live dashboard, recording, set-points, in the terminal",
                        description="Open a recipe (its instruments connected, nothing recorded until you press r) or "
                                    "a session file (browsing) in the operator console. Without a file, the bundled "
-                                   f"demonstration recipe ({DEMO_RECIPE.name}). Keys: ? help, p preview, r record, "
+                                   f"demonstration recipe ({DEMO_ACQUIRE.name}). Keys: ? help, p preview, r record, "
                                    "s stop, enter details, ctrl+p every action, ctrl+q quit.")
     p.add_argument("file", type=existing_path, nargs="?", metavar="RECIPE.toml | SESSION.h5",
                    help="recipe to open live, or session file to browse (default: the demonstration recipe)")
@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         root = Path.cwd() / DEMO_OUTPUT if path is None else None  # the demo writes under ./sessions/out
         with cli_advice("--out"):
-            console = Console.from_recipe(path or DEMO_RECIPE, args.out, args.overrides, args.overwrite, root)
+            console = Console.from_recipe(path or DEMO_ACQUIRE, args.out, args.overrides, args.overwrite, root)
     if not args.debug:  # the log pane shows the session's events; a stray log line would tear the screen
         logging.getLogger("mirrorlab").setLevel(logging.CRITICAL)
     app = MirrorlabApp(console)

@@ -23,7 +23,7 @@ def test_every_sim_fault_over_the_pty_while_acquiring(simulated_instrument: Any)
         inst.configure()
         router, clock = StreamRouter(), SessionClock()
         specs = {s.name: s for s in inst.streams()}
-        sub = router.subscribe("dut", "direction", maxlen=10_000)
+        sub = router.subscribe([("dut", "direction")], max_bytes=1 << 28)
         inst.start(Emitter("dut", router, clock, specs))
         try:
             for fault in sorted(EFFECTS):
