@@ -30,6 +30,7 @@ parameter's API unit (millimetres, radians...).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -41,7 +42,7 @@ if TYPE_CHECKING:
     from .streams import Block
 
 
-class Controller:
+class Controller(ABC):
     """Base class of every controller plugin.
 
     Parameters
@@ -83,13 +84,15 @@ class Controller:
 
     def setup(self, ctx: ControllerContext) -> None:
         """Called in the controller's thread before the first block (default: nothing)."""
+        return None
 
+    @abstractmethod
     def on_block(self, role: str, block: Block, ctx: ControllerContext) -> None:
         """React to one block of the input bound to ``role``: compute, then ``ctx.set(...)``.
 
         Runs in the controller's thread; blocks arrive in the order they were published.
         """
-        raise NotImplementedError(f"controller {self.name!r} must implement on_block()")
 
     def teardown(self, ctx: ControllerContext) -> None:
         """Called in the controller's thread after the last block (default: nothing)."""
+        return None

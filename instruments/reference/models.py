@@ -9,11 +9,12 @@ position. Times are the device clock in microseconds, angles integer microradian
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 
 from mirrorlab.core.devices import Lines, LineSimulator
 
 
-class _Streaming(LineSimulator):
+class _Streaming(LineSimulator, ABC):
     """A device that streams one tagged sample line at ``RATE`` Hz."""
 
     tag = "X"
@@ -24,8 +25,9 @@ class _Streaming(LineSimulator):
         self.rate_hz = 100.0
         self._next_ms = 0.0
 
+    @abstractmethod
     def value_urad(self, ms: float) -> int:
-        raise NotImplementedError
+        """The streamed value at device time ``ms``, µrad."""
 
     def cmd_RATE(self, args: list[str]) -> Lines:
         self.expect(args, 1, "RATE <Hz>")
