@@ -172,8 +172,7 @@ class ControllerRunner:
 
     def _set_state(self, state: str) -> None:
         self.state = state
-        self.report("error" if state == "failed" else "info", "state",
-                    f"controller {self.label!r} is {state}", state=state)
+        self.report("info", "state", f"controller {self.label!r} is {state}", state=state)  # the cause is its own event
 
     def _run(self) -> None:
         ctx = ControllerContext(self)

@@ -303,8 +303,8 @@ class Instrument(ABC):
             raise ValueError(f"state must be one of {STATES}, not {state!r}")
         if state != self.state:
             self.state = state
-            self.report("error" if state == "failed" else "info", "state",
-                        message or f"{self.device_name} is {state}", state=state)
+            # info: the cause (connection_lost, failed...) is its own event at its own level
+            self.report("info", "state", message or f"{self.device_name} is {state}", state=state)
 
     def start(self, emit: Emit) -> None:
         """Start :meth:`acquire` in the instrument's thread (reconnecting on connection loss)."""

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from mirrorlab.core import ConfigurationError, DataError, DeviceDisconnected
+from mirrorlab.core import ConfigurationError, DataError, DeviceDisconnected, DeviceError
 from mirrorlab.core.devices import Identity
 
 from .wire import PIXELS
@@ -188,15 +188,15 @@ class _CaptureSource(FrameSource):
         ...
 
     @abstractmethod
-    def _cannot_open(self) -> str:
-        ...
+    def _cannot_open(self) -> DeviceError:
+        """Why the capture did not open: a :class:`ConfigurationError` if no retry can help."""
 
     def open(self) -> None:
         self.close()
         capture = self._open_capture()
         if not capture.isOpened():
             capture.release()
-            raise DeviceDisconnected(self._cannot_open())
+            raise self._cannot_open()
         self.capture = capture
         self._index = 0
 
@@ -231,11 +231,11 @@ class VideoSource(_CaptureSource):
     def _open_capture(self) -> cv2.VideoCapture:
         return cv2.VideoCapture(str(self.path))
 
-    def _cannot_open(self) -> str:
+    def _cannot_open(self) -> DeviceError:
         if not self.path.exists():
-            return f"video file {str(self.path)!r} does not exist; check the `path` setting"
-        return (f"cannot decode video {str(self.path)!r}; check that the file is a video OpenCV can read "
-                "(e.g. MJPG in AVI) or convert it to a folder of PNG frames")
+            return ConfigurationError(f"video file {str(self.path)!r} does not exist; check the `path` setting")
+        return ConfigurationError(f"cannot decode video {str(self.path)!r}; check that the file is a video OpenCV "
+                                  "can read (e.g. MJPG in AVI) or convert it to a folder of PNG frames")
 
     def identity(self) -> Identity:
         count = int(self.capture.get(cv2.CAP_PROP_FRAME_COUNT)) if self.capture is not None else 0
@@ -254,9 +254,10 @@ class CameraSource(_CaptureSource):
     def _open_capture(self) -> cv2.VideoCapture:
         return cv2.VideoCapture(self.index)
 
-    def _cannot_open(self) -> str:
-        return (f"cannot open camera {self.index}; check that it is plugged in, that /dev/video{self.index} "
-                "exists and is readable by you, and that no other program uses it (or set `camera_index`)")
+    def _cannot_open(self) -> DeviceError:  # unplugged, or busy: a reconnect may succeed
+        return DeviceDisconnected(f"cannot open camera {self.index}; check that it is plugged in, that "
+                                  f"/dev/video{self.index} exists and is readable by you, and that no other "
+                                  "program uses it (or set `camera_index`)")
 
     def rewind(self) -> None:
         """A live camera has no beginning: nothing to do."""
