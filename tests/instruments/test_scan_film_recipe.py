@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import h5py
 import numpy as np
 import pytest
@@ -20,17 +21,19 @@ def test_bundled_recipes_validate(recipe: Path) -> None:
 
 
 def test_scan_film_records_frames(tmp_path: Path) -> None:
+    """Recorded until the end of a 3-frame film (not for a time): every frame, each with its 4 markers."""
     out = tmp_path / "scan.h5"
     proc = run_cli("run", str(REPO / "sessions" / "scan_film.toml"), "--out", str(out),
-                   "--set", "steps.0.seconds=3", "--set", "instruments.scanner.settings.lines=128")
+                   "--set", "steps.0.seconds=0", "--set", "instruments.scanner.settings.scene_frames=3")
     assert proc.returncode == 0, proc.stderr
     with h5py.File(out, "r") as f:
-        frames = f["instruments/scanner/frames/data"]
+        scanned = f["instruments/scanner/frames/data"][()]
         index = f["instruments/scanner/frame_index/data"][()]
         times = f["instruments/scanner/frames/time"][()]
-        assert frames.shape[0] >= 2 and frames.shape[1:] == (128, 512)
-        scanned = frames[()]
-        assert set(np.unique(scanned)) == {0, 255}  # binary frames with markers in them
-        assert np.all(np.diff(index) > 0) and np.all(np.diff(times) > 0)
+        assert scanned.shape == (3, 344, 512)
+        assert index.tolist() == [0, 1, 2] and np.all(np.diff(times) > 0)
+        for frame in scanned:  # binary frames, four white discs on black
+            assert set(np.unique(frame)) == {0, 255}
+            assert cv2.connectedComponents(frame)[0] - 1 == 4
         assert f["instruments/scanner"].attrs["plugin"] == "film_scanner"
         assert f.attrs["status"] == "closed"
