@@ -67,8 +67,8 @@ class FilmScanner(SerialInstrument):
         Parameter("head_sl2", int, 128, bounds=(0, 255), help="heading threshold for the dark frame edge"),
         Parameter("head_skip", int, 37, bounds=(0, 384), help="lines skipped into the frame after heading"),
         Parameter("frame_rate", float, 10.0, unit="Hz", bounds=(0.01, 1000.0),
-                  help="frame pacing of folder/video/camera/virtual sources; shooting rate of a "
-                       "virtual-lab film"),
+                  help="shooting rate of folder/video/virtual frames (paced at it, stamped k / rate from "
+                       "the first; a camera's frames are stamped on arrival) and of a virtual-lab film"),
         Parameter("loop", bool, False, help="restart a folder or video at its end"),
         Parameter("binarise", bool, True, help="binarise folder/video/camera frames at `threshold`"),
         Parameter("scene", str, "", choices=("", *SCENE_NAMES),
@@ -202,6 +202,7 @@ class FilmScanner(SerialInstrument):
         wrap = self.settings["loop"] if wrap is None else wrap
         period = 1.0 / self.settings["frame_rate"]
         due = time.monotonic()
+        anchor: tuple[float, int] | None = None  # (stamp, index) of the frame shooting times count from
         while not stop.is_set():
             item = source.read()
             if item is None and wrap:
@@ -210,9 +211,14 @@ class FilmScanner(SerialInstrument):
             if item is None:
                 return
             index, img = item
+            t = now()
+            if not source.live:  # frame k was shot at k / frame_rate: a slow read must not skew the stamps
+                if anchor is None or index < self._next_frame:  # first frame, or rewound
+                    anchor = (t, index)
+                t = anchor[0] + (index - anchor[1]) * period
             self._next_frame = index + 1
-            yield now(), index, to_scan_frame(img, self.settings["lines"], self.settings["threshold"],
-                                              self.settings["binarise"])
+            yield t, index, to_scan_frame(img, self.settings["lines"], self.settings["threshold"],
+                                          self.settings["binarise"])
             if pace:
                 due += period
                 stop.wait(max(0.0, due - time.monotonic()))

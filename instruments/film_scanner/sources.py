@@ -110,6 +110,9 @@ class FrameSource(ABC):
     """A source of greyscale frames: ``open``, ``read`` until ``None``, ``rewind``, ``close``."""
 
     kind: str = ""
+    #: A live source's frames are stamped when they arrive. The frames of a recording (folder, video,
+    #: virtual scene) were shot at ``index / frame_rate``, however long reading them takes.
+    live: bool = False
 
     @abstractmethod
     def open(self) -> None:
@@ -246,6 +249,7 @@ class CameraSource(_CaptureSource):
     """Frames of a live camera (``cv2.VideoCapture(index)``)."""
 
     kind = "CAMERA"
+    live = True
 
     def __init__(self, index: int) -> None:
         super().__init__()

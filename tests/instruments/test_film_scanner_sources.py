@@ -69,6 +69,24 @@ def test_folder_source_in_natural_order_and_paced(tmp_path: Path) -> None:
     dev.close()
 
 
+def test_recorded_frames_stamped_at_their_shooting_time(tmp_path: Path) -> None:
+    """A consumer slower than the frame rate delays the frames, not their stamps: k / rate from the first."""
+    for k in range(4):
+        cv2.imwrite(str(tmp_path / f"{k}.png"), disc_frame(100 + 100 * k))
+    dev = FilmScanner("f", settings={"source": "folder", "path": str(tmp_path), "frame_rate": 50.0})
+    dev.connect()
+    times: list[float] = []
+
+    def slow_emit(stream: str, t: Any, values: Any) -> None:
+        if stream == "frames":
+            times.append(float(t[0]))
+            time.sleep(0.05)  # 2.5 frame periods: arrival stamps would be >= 50 ms apart
+
+    dev.acquire(slow_emit, threading.Event())
+    dev.close()
+    np.testing.assert_allclose(np.diff(times), 0.02, rtol=0, atol=1e-12)
+
+
 def test_folder_loop_and_read(tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "a.png"), disc_frame(200))
     dev = FilmScanner("f", settings={"source": "folder", "path": str(tmp_path), "loop": True,
