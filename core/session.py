@@ -70,13 +70,26 @@ SIMULATOR_OPTIONS = ParameterSet(
 _PACKAGES = ("numpy", "scipy", "h5py", "pluggy", "pyserial", "opencv-python-headless", "textual", "rich")
 
 
-def _sha256(array: np.ndarray) -> str:
+#: Bytes of a dataset read at a time to hash it: memory stays bounded for a recording of any length.
+HASH_BLOCK_BYTES = 64 * 2**20
+
+
+def _sha256(array: np.ndarray | h5py.Dataset) -> str:
     """Hex SHA-256 of an array's values in C order (its dtype and shape are stored beside it).
+
+    A dataset is read in blocks of whole first-axis rows (about :data:`HASH_BLOCK_BYTES`); the
+    digest is that of the whole array.
 
     >>> _sha256(np.zeros(0))
     'e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855'
     """
-    return hashlib.sha256(np.ascontiguousarray(array).data).hexdigest()  # the buffer itself: no copy
+    if not isinstance(array, h5py.Dataset) or array.ndim == 0 or array.size == 0:
+        return hashlib.sha256(np.ascontiguousarray(array[()]).data).hexdigest()  # the buffer itself: no copy
+    digest = hashlib.sha256()
+    rows = max(1, HASH_BLOCK_BYTES // max(1, array.dtype.itemsize * int(np.prod(array.shape[1:]))))
+    for start in range(0, array.shape[0], rows):
+        digest.update(np.ascontiguousarray(array[start:start + rows]).data)
+    return digest.hexdigest()
 
 
 def _unit(declared: str, units: Mapping[str, str]) -> str:
@@ -897,7 +910,7 @@ class Session:
                 arrays[name] = np.asarray(value)
         if self.executor is None:
             arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
-        digests = {name: {"sha256": _sha256(a[()] if isinstance(a, h5py.Dataset) else a), "dtype": a.dtype.str,
+        digests = {name: {"sha256": _sha256(a), "dtype": a.dtype.str,
                           "shape": list(a.shape)} for name, a in arrays.items()}
         sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
 

@@ -74,6 +74,19 @@ def test_array_inputs_are_stored_by_their_sha256(session_file: Path, registry) -
     assert unit == "{values}/s"  # an array has no unit: the declared placeholder says whose unit it is
 
 
+def test_dataset_inputs_hashed_in_blocks(session_file: Path, registry, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With an executor the inputs stay datasets: hashed 3 rows at a time, with the whole array's digest."""
+    from mirrorlab.core import session as session_module
+    from mirrorlab.core.batch.executors import Executor
+
+    monkeypatch.setattr(session_module, "HASH_BLOCK_BYTES", 24)  # 3 float64 rows
+    with Session.open(session_file, writable=True, registry=registry) as s:
+        s.executor = Executor({"engine": "test"})
+        r = s.result(s.run("acme_drift_rate", INPUTS))
+    assert r.attrs["input_sha256"]["values"] == {"sha256": sha256(KELVIN), "dtype": "<f8", "shape": [101]}
+    assert r.attrs["input_sha256"]["time"]["sha256"] == sha256(T)
+
+
 class Big(Algorithm):
     """Two outputs; the second too large for the file-size limit of the child below."""
 
