@@ -154,8 +154,8 @@ class Session:
         # One lock for every change of state (instruments, acquisition, recording, closing), so a UI
         # thread and a script thread never race; snapshot() takes none.
         self._lock = threading.RLock()
-        self._cancel = threading.Event()  # set by request_stop()
         self._operations = 0
+        self._shared = 0  # depth of shared_for_reading()
         self._acquiring: set[str] = set()
         self._recorder: Recorder | None = None
         self._last_recorder: Recorder | None = None
@@ -901,18 +901,11 @@ class Session:
         arrays, sources, units = {}, {}, {}
         for name, value in inputs.items():
             if isinstance(value, str):
-                path = self.resolve(value, f"inputs.{name}")
-                dataset = self.file[path]
-                arrays[name] = dataset  # read below, or in chunks by the executor's workers
-                sources[name] = path
-                units[name] = _dataset_unit(dataset)
+                sources[name] = self.resolve(value, f"inputs.{name}")
+                units[name] = _dataset_unit(self.file[sources[name]])
             else:
                 arrays[name] = np.asarray(value)
-        if self.executor is None:
-            arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
-        digests = {name: {"sha256": _sha256(a), "dtype": a.dtype.str,
-                          "shape": list(a.shape)} for name, a in arrays.items()}
-        sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
+        datasets = dict(sources)
 
         def report(done: float, total: float | None, message: str) -> None:
             self.events.progress(cls.name, done, total, message)
@@ -921,7 +914,18 @@ class Session:
 
         self._commit()
         started = utc_now_iso()
-        with self.operation():  # request_stop() cancels the run at its next progress report
+        # While the inputs are read and the algorithm runs, the file is in SWMR mode: if this process
+        # is killed then, the file opens through SWMR and `session close` repairs it (killed outside
+        # SWMR mode, it would need HDF5's h5clear tool). Outputs are written after, in normal mode.
+        with self.operation(), self.shared_for_reading(required=False):  # request_stop() cancels at the next progress report
+            # Datasets are opened only now (HDF5 cannot enter SWMR mode while an object written in an
+            # older format is open); read here, or in chunks by the executor's workers.
+            arrays = {name: self.file[datasets[name]] if name in datasets else arrays[name] for name in inputs}
+            if self.executor is None:
+                arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
+            digests = {name: {"sha256": _sha256(a), "dtype": a.dtype.str,
+                              "shape": list(a.shape)} for name, a in arrays.items()}
+            sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
             context = RunContext(report, self._cancel)
             outcome = (execute(cls, arrays, parameters or {}, context) if self.executor is None
                        else self.executor(self, cls, arrays, parameters or {}, context))
@@ -964,21 +968,36 @@ class Session:
         return ref
 
     @contextlib.contextmanager
-    def shared_for_reading(self) -> Iterator[None]:
+    def shared_for_reading(self, required: bool = True) -> Iterator[None]:
         """Let other processes read the file (SWMR) during the block; this session writes nothing meanwhile.
 
         Everything is flushed, the file switches to SWMR mode (as while recording, so readers open it
         with :func:`~mirrorlab.core.store.files.open_readonly`), and is reopened writable after.
+        HDF5 refuses SWMR mode while an object written in a format older than HDF5 1.10 is open
+        (one added to the file by another program): that raises :class:`SessionError` or, with
+        ``required=False``, runs the block unshared.
         """
         self._require_writable("share the file for reading")
+        if self._shared:  # already shared by an enclosing block
+            yield
+            return
         self._write_pending_log()
         self._commit()
         self.file.flush()
-        self.file.swmr_mode = True
+        try:
+            self.file.swmr_mode = True
+        except RuntimeError as exc:  # h5py's error for "Unable to start swmr writing (...)"
+            if required:
+                raise SessionError(f"{self.path} cannot be shared with other processes while it is open here "
+                                   f"({exc}); close what holds its datasets open, or run without workers") from exc
+            yield
+            return
         files.write_lock(self.path)
+        self._shared += 1
         try:
             yield
         finally:
+            self._shared -= 1
             self.file.close()
             self.file = files.open_writable(self.path)
             files.remove_lock(self.path)

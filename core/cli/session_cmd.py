@@ -154,7 +154,7 @@ def close(args: argparse.Namespace) -> int:
     if report.status in ("closed", "aborted") and not report.open_for_write:
         print(f"{args.file} is already {report.status}")
         return 0 if report.status == status else 1
-    if report.schema is None or report.status != "open":
+    if report.schema is None or (report.status != "open" and not report.open_for_write):
         raise SessionError(f"{args.file} is not a mirrorlab session that can be closed ({'; '.join(report.problems)}); "
                            "it is left as it is")
     with files.reading(args.file):

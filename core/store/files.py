@@ -267,6 +267,13 @@ def check(path: str | Path) -> CheckReport:
                 why = "the recording was killed" if crashed else "it was never closed"
                 report.problems.append(f"status is 'open': the session is incomplete ({why}); "
                                        "run `mirrorlab session close FILE --aborted` to mark it")
+        elif crashed:  # a session opened again to add results (an analysis), with the file in SWMR mode
+            if report.writer:
+                report.problems.append(f"results are being written right now by {report.writer}")
+            else:
+                report.problems.append("the process writing results into it was killed and the file is still "
+                                       "flagged open for write; run `mirrorlab session close FILE` to repair it "
+                                       "(everything written before that run is kept)")
         for label, inst in members(f, "instruments"):
             for name, g in members(inst):
                 if not isinstance(g, h5py.Group) or "data" not in g:

@@ -103,3 +103,66 @@ def test_another_process_reads_the_growing_file(tmp_path: Path, acme_site: Path)
     finally:
         proc.kill()
         proc.wait(timeout=10)
+
+
+ANALYSIS = textwrap.dedent("""
+    import sys, threading
+    import numpy as np
+    from mirrorlab.core import Algorithm, Port, Session
+
+    class Stuck(Algorithm):
+        name = "stuck"
+        version = "0"
+        description = "says it started, then never ends (the test kills it)"
+        inputs = (Port("values", "(N,) anything"),)
+        outputs = (Port("mean", "() mean"),)
+
+        def run(self, inputs, params, context):
+            print("RUNNING", flush=True)
+            threading.Event().wait()
+
+    with Session.open(sys.argv[1], writable=True) as s:
+        s.run(Stuck, {"values": "/truth/series/data"})
+""")
+
+
+def test_sigkill_during_an_algorithm_run_leaves_a_repairable_file(tmp_path: Path) -> None:
+    """The file is in SWMR mode while an algorithm runs: killed then, it opens and `session close` repairs it."""
+    path = tmp_path / "analysed.h5"
+    with Session.create(path, operator="crash-test") as s:
+        s.write_group("truth/series", {"time": np.arange(5.0), "data": np.arange(5.0) ** 2})
+    proc = subprocess.Popen([sys.executable, "-c", ANALYSIS, str(path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "RUNNING"
+        check = run_cli("session", "check", str(path))
+        assert check.returncode == 1 and f"results are being written right now by pid {proc.pid}" in check.stdout
+    finally:
+        proc.kill()
+        proc.wait(timeout=10)
+    check = run_cli("session", "check", str(path))
+    assert check.returncode == 1 and "writing results into it was killed" in check.stdout, check.stdout
+    with Session.open(path) as s:  # through SWMR: everything written before the run is there
+        assert s.crashed
+        assert s.file["truth/series/data"][()].tolist() == [0.0, 1.0, 4.0, 9.0, 16.0]
+    close = run_cli("session", "close", str(path))
+    assert close.returncode == 0, close.stderr
+    assert "repaired" in close.stdout
+    with h5py.File(path, "r") as f:  # a normal open works again
+        assert f.attrs["status"] == "closed" and f["truth/series/data"].shape == (5,)
+
+
+def test_an_open_dataset_of_an_older_format_runs_unshared(tmp_path: Path) -> None:
+    """HDF5 refuses SWMR mode while an object of a pre-1.10 format is open: the run goes on unshared,
+    and sharing on purpose says what holds it."""
+    path = tmp_path / "mixed.h5"
+    with Session.create(path, operator="crash-test"):
+        pass
+    with h5py.File(path, "a") as f:  # another program adds data in h5py's default (oldest) format
+        f["t10"], f["v10"] = np.arange(10.0), np.zeros((10, 3))
+    with Session.open(path, writable=True) as s:
+        held = s.file["v10"]
+        with pytest.raises(SessionError, match="cannot be shared with other processes"):
+            with s.shared_for_reading():
+                pass
+        ref = s.run("filter", {"time": "/t10", "values": "/v10"})
+        assert ref.status == "ok" and held.shape == (10, 3)
