@@ -121,6 +121,8 @@ class RetargetController(Controller):
         self.outputs = 0
         self._latencies: list[float] = []
         self._previous: float | None = None
+        if self.settings["arm_lengths"] or self.input_chain is not None:   # known: start a worker before the clock
+            self.compute = self._open(None)
 
     def _pose(self, values: np.ndarray) -> np.ndarray:
         """Input joint positions (n + 1, 3) mm of one sample."""
@@ -128,9 +130,15 @@ class RetargetController(Controller):
             return self.input_chain.forward(np.asarray(values, float).reshape(1, -1))[0]
         return np.asarray(values, float).reshape(-1, 3)
 
-    def _open(self, X: np.ndarray) -> Compute:
-        lengths = self.settings["arm_lengths"] or (self.input_chain.lengths if self.input_chain is not None else
-                                                   np.linalg.norm(np.diff(X, axis=0), axis=1))
+    def _open(self, X: np.ndarray | None) -> Compute:
+        """The compute module, its correspondence from ``arm_lengths``, the virtual chain or the pose ``X``."""
+        if self.settings["arm_lengths"]:
+            lengths = np.asarray(self.settings["arm_lengths"])
+        elif self.input_chain is not None:
+            lengths = self.input_chain.lengths
+        else:
+            assert X is not None
+            lengths = np.linalg.norm(np.diff(X, axis=0), axis=1)
         s = self.settings
         compute = Compute(self.chain, lengths, s["method"], sweeps=s["sweeps"] or 3, max_iter=s["max_iter"],
                           distance=s["distance"], fallback_delay=0 if s["multistart"] == "frame" else None)
