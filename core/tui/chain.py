@@ -154,7 +154,7 @@ class ChainScreen(Screen[None]):
             self.app.call_from_thread(self._computed, result)
 
     def _computed(self, result: Retargeted) -> None:
-        if self.result is None or result.pose > self.result.pose:
+        if self.is_attached and (self.result is None or result.pose > self.result.pose):
             self.result = result
             self.query_one(ChainPlot).draw(result, self.reach)
             self._show()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 from rich.text import Text
@@ -47,9 +48,10 @@ class Optimum:
     area: float
 
 
+@cache
 def optimum(length: float = LENGTH) -> Optimum:
     """The optimal wall of spec §6 on a coarse grid, scaled from the thesis's l = 3 to ``length`` mm
-    (areas scale with the square: the problem is similar under scaling)."""
+    (areas scale with the square: the problem is similar under scaling); computed once per process."""
     from mirrorlab.plugins.mechanisms.walls import optimal_wall, wall_motion
 
     best = optimal_wall(grid=OPTIMUM_GRID, final=OPTIMUM_FINAL, maxiter=OPTIMUM_ITER)
@@ -175,7 +177,7 @@ class DexterityScreen(Screen[None]):
             self.app.call_from_thread(self._area_done, *result)
 
     def _area_done(self, motion: int, positions: int, area: float) -> None:
-        if motion == self.motion and positions >= self.area_positions:   # not a restarted motion's
+        if self.is_attached and motion == self.motion and positions >= self.area_positions:   # not a restarted motion's
             self.area, self.area_positions = area, positions
             self._show()
 
@@ -185,7 +187,8 @@ class DexterityScreen(Screen[None]):
 
     def _optimum_done(self, best: Optimum) -> None:
         self.best = best
-        self._redraw()
+        if self.is_attached:                   # not left meanwhile
+            self._redraw()
 
     # -- display ---------------------------------------------------------------------------------
     def _redraw(self) -> None:
