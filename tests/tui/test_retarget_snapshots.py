@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 from mirrorlab.core.tui.app import MirrorlabApp
+from mirrorlab.core.tui.chain import ChainScreen
+from mirrorlab.core.tui.dexterity import DexterityScreen
 from mirrorlab.core.tui.model import Console
 from textual.pilot import Pilot
 
@@ -23,8 +25,8 @@ def app(tmp_path: Path) -> MirrorlabApp:
 def test_virtual_chain(app: MirrorlabApp, snap_compare) -> None:
     async def turned(pilot: Pilot) -> None:
         await pilot.press("v", "up", "up", "right", "down")
-        await until(pilot, lambda: app.screen.result is not None and app.screen.result.pose == app.screen.pose,
-                    "the newest pose is retargeted")
+        await until(pilot, lambda: isinstance(app.screen, ChainScreen) and app.screen.result is not None
+                    and app.screen.result.pose == app.screen.pose, "the newest pose is retargeted")
 
     assert snap_compare(app, run_before=turned, terminal_size=(80, 24))
 
@@ -33,6 +35,7 @@ def test_dexterity_task(app: MirrorlabApp, snap_compare) -> None:
     async def moved(pilot: Pilot) -> None:
         await pilot.press("d", *["left", "down", "down"] * 5)
         screen = app.screen
+        assert isinstance(screen, DexterityScreen)
         await until(pilot, lambda: screen.best is not None and screen.area_positions == len(screen.a),
                     "the optimum and the swept area are computed", polls=2400)
 
