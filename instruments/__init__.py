@@ -25,10 +25,10 @@ def mirrorlab_register_instruments() -> list[type]:
     from .film_scanner import FilmScanner
     from .line_tracker import LineTracker
     from .mirror_gimbal import MirrorGimbal
-    from .reference import Actuator, AngleSource
+    from .reference import Actuator, AngleSource, ChainSource
     from .ultrasonic_tracker import UltrasonicTracker
 
-    return [FilmScanner, LineTracker, MirrorGimbal, UltrasonicTracker, AngleSource, Actuator]
+    return [FilmScanner, LineTracker, MirrorGimbal, UltrasonicTracker, AngleSource, Actuator, ChainSource]
 
 
 __all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]

@@ -65,6 +65,8 @@ class MirrorlabApp(App[int]):
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
         Binding("t", "steps", "Steps"),
+        Binding("v", "virtual_chain", "Chain", show=False),
+        Binding("d", "dexterity", "Dexterity", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
@@ -249,6 +251,16 @@ class MirrorlabApp(App[int]):
 
         self.push_screen(StepsScreen())
 
+    def action_virtual_chain(self) -> None:
+        from .chain import ChainScreen
+
+        self.push_screen(ChainScreen())
+
+    def action_dexterity(self) -> None:
+        from .dexterity import DexterityScreen
+
+        self.push_screen(DexterityScreen())
+
     def action_open_source(self, source: str) -> None:
         from .detail import SourceScreen
 
@@ -276,6 +288,10 @@ class MirrorlabApp(App[int]):
         yield SystemCommand("Record", "start or stop recording every instrument (r)", self.action_record)
         yield SystemCommand("Stop", "stop acquiring; a recording is written to the end (s)", self.action_stop)
         yield SystemCommand("Steps", "the recipe's steps: run from one, see progress, cancel (t)", self.action_steps)
+        yield SystemCommand("Virtual chain", "turn a virtual input chain's joints, see it retargeted (v)",
+                            self.action_virtual_chain)
+        yield SystemCommand("Dexterity task", "sweep the least area moving a segment, B on the x axis (d)",
+                            self.action_dexterity)
         for source in self.model.sources:
             yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",
                                 partial(self.action_open_source, source))

@@ -20,6 +20,7 @@ HELP = """\
 [b]r[/b]        start / stop recording (all instruments)
 [b]s[/b]        stop acquiring (ends a recording, written to the end)
 [b]t[/b]        the recipe's steps: run from one, progress, x cancels
+[b]v[/b] / [b]d[/b]    virtual chain retargeted live / dexterity task (swept area)
 [b]enter[/b]    details of the selected instrument or controller:
          settings, live set-points, live plots
 [b]esc[/b]      back / close a dialog

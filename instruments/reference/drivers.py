@@ -1,25 +1,26 @@
-"""Drivers of the reference instruments (``ANGS`` angle source, ``ACTU`` actuator).
+"""Drivers of the reference instruments (``ANGS`` angle source, ``ACTU`` actuator, ``CHNS`` chain source).
 
-Both stream one tagged line type; the reader thread publishes each sample as it arrives, stamped
+Each streams one tagged line type; the reader thread publishes each sample as it arrives, stamped
 with the device's own clock mapped to session time, so a controller sees it without a further
-thread hop. Units at the API: seconds, radians, hertz.
+thread hop. Units at the API: seconds, radians, hertz, millimetres.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
 from mirrorlab.core.devices import Emit, SerialInstrument
 
-from .models import ActuatorModel, AngleSourceModel
+from .models import ActuatorModel, AngleSourceModel, ChainSourceModel
 
 
 class _StreamingInstrument(SerialInstrument):
-    """Streams ``!<tag> <µs> <µrad>`` lines as one scalar stream in rad."""
+    """Streams ``!<tag> <µs> <fields>`` lines (by default one scalar in µrad, published in rad)."""
 
     tag: ClassVar[str]
     stream_name: ClassVar[str]
@@ -42,12 +43,19 @@ class _StreamingInstrument(SerialInstrument):
             super().on_unsolicited(line)
             return
         try:
-            _, us, urad = line.split()
-            t, value = self._offset + int(us) * 1e-6, int(urad) * 1e-6
+            _, us, *fields = line.split()
+            t = self._offset + int(us) * 1e-6
+            samples = self.parse_sample(fields)
         except ValueError:
             self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line {line!r}")
             return
-        emit(self.stream_name, [t], [value])
+        for stream, value in samples.items():
+            emit(stream, [t], [value])
+
+    def parse_sample(self, fields: list[str]) -> dict[str, Any]:
+        """Stream name -> one sample's value from the fields after the time stamp (raises ValueError)."""
+        (urad,) = fields
+        return {self.stream_name: int(urad) * 1e-6}
 
     def acquire(self, emit: Emit, stop: threading.Event) -> None:
         # The device clock (ms since power-up) anchored to session time once per acquisition.
@@ -122,3 +130,65 @@ class Actuator(_StreamingInstrument):
 
     def hold(self) -> None:
         self.query("HOLD")
+
+
+class ChainSource(_StreamingInstrument):
+    """A motion-capture source streaming the positions of a chain of joints (``CHNS``).
+
+    The device streams the selected joints (``joints``, root to tip) once per frame; the stream
+    ``joints`` holds one (joints, 3) array per frame in mm (NaN where a joint is missing) and
+    ``frame`` the device's frame number. Its simulator plays a recording (``motion``: a BVH, C3D,
+    TRC or TSV file, read by :func:`mirrorlab.plugins.retarget.algorithms.read_motion`) or, without
+    one, a generated arm (:func:`.chains.generated_arm`), looping.
+    """
+
+    name = "chain_source"
+    version = "1.0.0"
+    description = "Reference motion-capture source streaming joint positions (mm) of a chain, frame by frame"
+    kind = "CHNS"
+    simulator = ChainSourceModel
+    tag = "J"
+    stream_name = "joints"
+    stream_description = "joint positions root to tip, mm"
+    parameters = ParameterSet(
+        Parameter("rate", float, 100.0, unit="Hz", bounds=(1.0, 1000.0), help="frames per second"),
+        Parameter("joints", str, "shoulder,elbow,wrist,hand",
+                  help="joints to stream, root to tip, comma-separated (JOINTS? lists the device's)"),
+        Parameter("motion", str, "", help="simulation only: the recording the simulator plays (.bvh, .c3d, .trc, "
+                                          ".tsv; relative to the working directory); empty = a generated arm"),
+        Parameter("scale", float, 1.0, bounds=(0.0, None), help="simulation only: mm per unit of the recording"),
+        Parameter("skip", int, 0, bounds=(0, None), help="simulation only: leading frames of the recording to drop"),
+    )
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.strip() for j in self.settings["joints"].split(",") if j.strip()]
+
+    @classmethod
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> ChainSourceModel:
+        """A simulator playing ``motion`` (or the generated arm) with the joints ``joints`` names."""
+        from .chains import simulated_chain
+
+        values = cls.parameters.validate(dict(settings))
+        positions, names, rate = simulated_chain(values["motion"], [j.strip() for j in values["joints"].split(",")
+                                                                     if j.strip()], values["scale"], values["skip"])
+        return ChainSourceModel(positions, names, rate, seed=seed)
+
+    def streams(self) -> list[StreamSpec]:
+        rate = self.settings["rate"]
+        return [StreamSpec("joints", "f8", (len(self.joint_names), 3), "mm", rate, self.stream_description),
+                StreamSpec("frame", "i8", (), "", rate, "the device's frame number of each sample")]
+
+    def apply_settings(self, settings: dict[str, Any]) -> None:
+        super().apply_settings(settings)
+        self.query("SEL " + " ".join(self.joint_names))
+
+    def parse_sample(self, fields: list[str]) -> dict[str, Any]:
+        n = len(self.joint_names)
+        if len(fields) != 1 + 3 * n:
+            raise ValueError(f"expected a frame number and {3 * n} coordinates, got {len(fields)} fields")
+        xyz = np.array([float(v) for v in fields[1:]]).reshape(n, 3) * 1e-3
+        return {"joints": xyz, "frame": int(fields[0])}
+
+    def read(self) -> dict[str, np.ndarray]:
+        raise DeviceError(f"{self.device_name} only streams; start acquiring and subscribe to 'joints'")

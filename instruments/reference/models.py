@@ -3,15 +3,20 @@
 ``ANGS`` streams ``!A <µs> <µrad>``: a sinusoidal angle ``amplitude · sin(2π f t)`` sampled at
 ``RATE`` Hz. ``ACTU`` moves towards its target at a limited speed and streams
 ``!P <µs> <µrad>`` at ``RATE`` Hz; ``TGT <µrad>`` sets the target, ``HOLD`` keeps the present
-position. Times are the device clock in microseconds, angles integer microradians.
+position. ``CHNS`` plays a recorded chain (joint positions per frame, looping) and streams
+``!J <µs> <frame> <x y z of each selected joint, µm>`` at ``RATE`` Hz, one frame per sample. Times
+are the device clock in microseconds, angles integer microradians, positions integer micrometres.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 
-from mirrorlab.core.devices import Lines, LineSimulator
+import numpy as np
+from mirrorlab.core.devices import CommandError, Lines, LineSimulator
+from numpy.typing import ArrayLike
 
 
 class _Streaming(LineSimulator, ABC):
@@ -26,8 +31,8 @@ class _Streaming(LineSimulator, ABC):
         self._next_ms = 0.0
 
     @abstractmethod
-    def value_urad(self, ms: float) -> int:
-        """The streamed value at device time ``ms``, µrad."""
+    def sample(self, ms: float) -> str:
+        """The fields of the sample streamed at device time ``ms``, after its time stamp."""
 
     def cmd_RATE(self, args: list[str]) -> Lines:
         self.expect(args, 1, "RATE <Hz>")
@@ -43,7 +48,7 @@ class _Streaming(LineSimulator, ABC):
         period = 1000.0 / self.rate_hz
         self._next_ms = max(self._next_ms, self.clock_ms - 100 * period)  # after a pause, do not flood
         while self._next_ms <= self.clock_ms:
-            lines.append(f"!{self.tag} {int(round(self._next_ms * 1000))} {self.value_urad(self._next_ms)}")
+            lines.append(f"!{self.tag} {int(round(self._next_ms * 1000))} {self.sample(self._next_ms)}")
             self._next_ms += period
         return lines
 
@@ -64,8 +69,8 @@ class AngleSourceModel(_Streaming):
         self.amplitude_urad = 200_000  # 0.2 rad
         self.frequency_hz = 0.5
 
-    def value_urad(self, ms: float) -> int:
-        return int(round(self.amplitude_urad * math.sin(2 * math.pi * self.frequency_hz * ms / 1000.0)))
+    def sample(self, ms: float) -> str:
+        return str(int(round(self.amplitude_urad * math.sin(2 * math.pi * self.frequency_hz * ms / 1000.0))))
 
     def cmd_WAVE(self, args: list[str]) -> Lines:
         self.expect(args, 2, "WAVE <amplitude µrad> <frequency Hz>")
@@ -103,8 +108,8 @@ class ActuatorModel(_Streaming):
         self.position += max(-step, min(step, self.target - self.position))
         super().advance(seconds)
 
-    def value_urad(self, ms: float) -> int:
-        return int(round(self.position))
+    def sample(self, ms: float) -> str:
+        return str(int(round(self.position)))
 
     def cmd_TGT(self, args: list[str]) -> Lines:
         self.expect(args, 1, "TGT <µrad>")
@@ -130,3 +135,73 @@ class ActuatorModel(_Streaming):
 
     def truth_lines(self) -> list[str]:
         return [f"POS {self.position:.1f}", f"TGT {self.target:.1f}"]
+
+
+class ChainSourceModel(_Streaming):
+    """``CHNS``: plays recorded joint positions (a motion-capture system's live skeleton), looping.
+
+    Parameters
+    ----------
+    positions : array_like (frames, joints, 3)
+        Joint positions, mm; NaN where a joint is missing (streamed as ``nan``).
+    names : sequence of str
+        The joints' names (no spaces), in the order of ``positions``.
+    frame_rate : float
+        The recording's frame rate, Hz: the power-on ``RATE``.
+    """
+
+    kind = "CHNS"
+    model = "CHAIN-SIM"
+    serial_number = "CH0001"
+    tag = "J"
+    stream_tick = 0.001  # 120 Hz and faster
+
+    def __init__(self, positions: ArrayLike, names: Sequence[str], frame_rate: float, seed: int = 0) -> None:
+        self.positions = np.asarray(positions, float)
+        self.names = [str(n) for n in names]
+        if self.positions.ndim != 3 or self.positions.shape[1:] != (len(self.names), 3) or not len(self.positions):
+            raise ValueError(f"positions must have shape (frames, {len(self.names)} joints, 3) mm, "
+                             f"got {self.positions.shape}")
+        if any(not n or " " in n for n in self.names):
+            raise ValueError(f"joint names must be non-empty words without spaces, got {self.names}")
+        self.frame_rate = float(frame_rate)
+        super().__init__(seed)
+
+    def reset(self) -> None:
+        super().reset()
+        self.rate_hz = self.frame_rate
+        self.frame = 0                                  # next frame to stream
+        self.selected = list(range(len(self.names)))
+
+    def sample(self, ms: float) -> str:
+        um = np.rint(self.positions[self.frame, self.selected] * 1000.0).ravel()
+        fields = " ".join("nan" if v != v else str(int(v)) for v in um)
+        line = f"{self.frame} {fields}"
+        self.frame = (self.frame + 1) % len(self.positions)
+        return line
+
+    def cmd_JOINTS_Q(self, args: list[str]) -> Lines:
+        yield "OK " + " ".join(self.names)
+
+    def cmd_SEL(self, args: list[str]) -> Lines:
+        if not args:
+            raise CommandError("E02", "usage: SEL <joint> [<joint> ...]")
+        unknown = [a for a in args if a not in self.names]
+        if unknown:
+            raise CommandError("E03", f"no joint {unknown[0]}; joints: {' '.join(self.names)}")
+        self.selected = [self.names.index(a) for a in args]
+        yield f"OK {len(self.selected)}"
+
+    def cmd_SEL_Q(self, args: list[str]) -> Lines:
+        yield "OK " + " ".join(self.names[i] for i in self.selected)
+
+    def cmd_FRAMES_Q(self, args: list[str]) -> Lines:
+        yield f"OK {len(self.positions)} {self.frame_rate:g}"
+
+    def cmd_SEEK(self, args: list[str]) -> Lines:
+        self.expect(args, 1, "SEEK <frame>")
+        self.frame = int(self.number(args[0], 0, len(self.positions) - 1))
+        yield f"OK {self.frame}"
+
+    def truth_lines(self) -> list[str]:
+        return [f"FRAME {self.frame}"]

@@ -1,5 +1,5 @@
-"""Registration of the retarget adapters: the ``retarget`` algorithm (:mod:`.algorithms`) and step
-(:mod:`.steps`).
+"""Registration of the retarget adapters: the ``retarget`` algorithm (:mod:`.algorithms`), step
+(:mod:`.steps`) and controller (:mod:`.controllers`).
 
 Nothing else lives here.
 """
@@ -9,6 +9,7 @@ from __future__ import annotations
 from mirrorlab.core import hookimpl
 
 from .algorithms import Retarget
+from .controllers import RetargetController
 from .steps import RetargetStep
 
 
@@ -20,3 +21,8 @@ def mirrorlab_register_algorithms() -> list[type]:
 @hookimpl
 def mirrorlab_register_steps() -> list[type]:
     return [RetargetStep]
+
+
+@hookimpl
+def mirrorlab_register_controllers() -> list[type]:
+    return [RetargetController]

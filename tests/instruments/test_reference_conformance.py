@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from mirrorlab.core.testing import InstrumentConformance
-from mirrorlab.instruments.reference import Actuator, AngleSource
+from mirrorlab.instruments.reference import Actuator, AngleSource, ChainSource
 
 
 class TestAngleSourceConformance(InstrumentConformance):
@@ -14,3 +14,8 @@ class TestAngleSourceConformance(InstrumentConformance):
 class TestActuatorConformance(InstrumentConformance):
     instrument_class = Actuator
     settings = {"rate": 100.0, "target": 0.5}
+
+
+class TestChainSourceConformance(InstrumentConformance):
+    instrument_class = ChainSource
+    settings = {"rate": 200.0, "joints": "shoulder,elbow,hand"}

@@ -21,6 +21,7 @@ MODULES = [
     "mirrorlab.instruments.ultrasonic_tracker.search",
     "mirrorlab.instruments.ultrasonic_tracker.experiments",
     "mirrorlab.instruments.ultrasonic_tracker.driver",
+    "mirrorlab.instruments.reference.chains",
 ]
 
 

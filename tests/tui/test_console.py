@@ -146,7 +146,8 @@ async def test_help_and_every_action_in_the_command_palette(loop_console: Consol
         await pilot.press("escape")
         assert not isinstance(app.screen, HelpScreen)
         titles = [c.title for c in app.get_system_commands(app.screen)]
-    keyed = {"help": "Help", "preview": "Preview", "record": "Record", "stop": "Stop", "steps": "Steps", "quit": "Quit"}
+    keyed = {"help": "Help", "preview": "Preview", "record": "Record", "stop": "Stop", "steps": "Steps", "quit": "Quit",
+             "virtual_chain": "Virtual chain", "dexterity": "Dexterity task"}
     assert {b.action for b in MirrorlabApp.BINDINGS} == set(keyed)
     assert set(keyed.values()) <= set(titles) and titles.count("Quit") == 1
     assert {"Open sensor", "Open actuator", "Open loop"} <= set(titles)

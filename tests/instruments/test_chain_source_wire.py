@@ -1,0 +1,84 @@
+"""The CHNS wire format, pinned by the transcripts of docs/instruments/reference.md.
+
+The first transcript is replayed on the simulator (byte-identical replies); the second is served by a
+scripted device on a real pty to the real driver, which must send exactly its bytes and turn its
+stream lines into samples (session time, mm, NaN for a missing coordinate).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from mirrorlab.core.clock import SessionClock
+from mirrorlab.core.devices import SimulatorServer
+from mirrorlab.core.errors import DeviceReplyError
+from mirrorlab.core.streams import Emitter, StreamRouter
+from mirrorlab.instruments.reference import ChainSource
+from mirrorlab.instruments.reference.chains import ARM_JOINTS, generated_arm
+from mirrorlab.instruments.reference.models import ChainSourceModel
+
+from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
+
+SIMULATOR, DRIVER = [t for t in transcripts("reference.md") if any("CHNS" in line for line in t)]
+FRAMES = np.array([[[0, 0, 0], [300, 0, 0], [300, 250.5, 0]], [[0, 0, 0], [0, 300, 0], [np.nan] * 3]])
+
+
+def test_simulator_answers_the_documented_transcript() -> None:
+    replay_on_model(ChainSourceModel(FRAMES, ["shoulder", "elbow", "hand"], 100.0), SIMULATOR)
+
+
+def test_driver_sends_the_documented_bytes_and_parses_the_stream() -> None:
+    device = ScriptedDevice(DRIVER)
+    router, clock = StreamRouter(), SessionClock()
+    source = ChainSource("mocap", port=str(device.path), settings={"rate": 120.0, "joints": "RightArm,RightHand"},
+                         timeout=2.0)
+    emit = Emitter("mocap", router, clock, {s.name: s for s in source.streams()})
+    stop = threading.Event()
+    try:
+        source.connect()
+        source.identify()
+        source.configure()
+        with router.subscribe([("mocap", "joints"), ("mocap", "frame")]) as live:
+            thread = threading.Thread(target=source.acquire, args=(emit, stop))
+            thread.start()
+            blocks = [live.get(timeout=10) for _ in range(4)]
+            stop.set()
+            thread.join(10)
+        source.close()
+    finally:
+        device.close()
+    assert device.error is None, device.error
+    assert device.done.is_set()
+    joints = [b for b in blocks if b.stream == "joints"]
+    frames = [int(b.values[0]) for b in blocks if b.stream == "frame"]
+    assert frames == [7, 8]
+    np.testing.assert_array_equal(joints[0].values[0], [[0, 0, 0], [300, -250.5, 0.012]])
+    np.testing.assert_array_equal(joints[1].values[0], [[1, np.nan, np.nan], [np.nan] * 3])
+    assert joints[1].times[0] - joints[0].times[0] == pytest.approx(0.008333, abs=1e-9)
+
+
+@pytest.mark.parametrize("fields", [["7", "1", "2"], ["x", "0", "0", "0", "0", "0", "0"], ["7", "a", "0", "0", "0", "0", "0"]])
+def test_malformed_stream_lines_are_refused(fields: list[str]) -> None:
+    source = ChainSource("mocap", port="loop://", settings={"joints": "a,b"})
+    with pytest.raises(ValueError):
+        source.parse_sample(fields)
+
+
+def test_unknown_joint_is_a_device_error_naming_the_joints() -> None:
+    with SimulatorServer(ChainSource.make_simulator({}, 0)) as server:
+        source = ChainSource("mocap", port=server.url, settings={"joints": "shoulder,knee"})
+        source.connect()
+        try:
+            with pytest.raises(DeviceReplyError, match="no joint knee; joints: shoulder elbow wrist hand"):
+                source.configure()
+        finally:
+            source.close()
+
+
+def test_generated_arm_keeps_its_link_lengths() -> None:
+    X = generated_arm()
+    lengths = np.linalg.norm(np.diff(X, axis=1), axis=-1)
+    np.testing.assert_allclose(lengths, np.broadcast_to([300.0, 250.0, 80.0], lengths.shape), atol=1e-9)
+    assert X.shape == (1000, len(ARM_JOINTS), 3) and np.ptp(X[:, 3], axis=0).min() > 50  # it moves in 3-D
