@@ -20,8 +20,10 @@ def add(sub: argparse._SubParsersAction) -> None:
     # SUPPRESS: `plugins --json doctor` and `plugins doctor --json` both count
     d.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="machine-readable output")
     d.set_defaults(func=doctor)
-    s = psub.add_parser("show", help="one instrument, algorithm or step with its typed parameters")
-    s.add_argument("name", help="instrument, algorithm or step name (mirrorlab plugins lists them)")
+    s = psub.add_parser("show", help="one instrument, algorithm, controller or step with its typed parameters "
+                                     "(every kind that has the name, unless --kind picks one)")
+    s.add_argument("name", help="instrument, algorithm, controller or step name (mirrorlab plugins lists them)")
+    s.add_argument("--kind", choices=KINDS, help="show only this kind (several kinds may share a name)")
     s.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="machine-readable output")
     s.set_defaults(func=show)
 
@@ -121,16 +123,24 @@ def doctor(args: argparse.Namespace) -> int:
 
 def show(args: argparse.Namespace) -> int:
     reg = get_registry()
-    kind = next((k for k in KINDS if reg.providers(k, args.name)), None)
-    if kind is None:
-        raise ValidationError([Problem("", f"nothing named {args.name!r}; `mirrorlab plugins` lists what is installed")])
-    info = _describe(kind, reg.get(kind, args.name))
-    if args.json:
-        print(json.dumps(info, indent=2, default=str))
+    kinds = [k for k in KINDS if reg.providers(k, args.name) and args.kind in (None, k)]
+    if not kinds:
+        what = f"no {args.kind}" if args.kind else "nothing"
+        raise ValidationError([Problem("", f"{what} named {args.name!r}; `mirrorlab plugins` lists what is installed")])
+    if args.json:  # one object, of the first kind when --kind does not pick one
+        print(json.dumps(_describe(kinds[0], reg.get(kinds[0], args.name)), indent=2, default=str))
         return 0
+    for i, kind in enumerate(kinds):
+        if i:
+            print()
+        _print_plugin(kind, _describe(kind, reg.get(kind, args.name)))
+    return 0
+
+
+def _print_plugin(kind: str, info: dict[str, Any]) -> None:
     print(f"{kind} {info['name']} {info['version']}: {plain(info['description'])}")
     if info["parameters"]:
-        print("  parameters:" if kind == "algorithm" else "  settings:" if kind == "instrument" else "  keys:")
+        print("  parameters:" if kind == "algorithm" else "  settings:" if kind in ("instrument", "controller") else "  keys:")
     for p in info["parameters"]:  # name, type, unit, bounds, choices, default; the help on its own line
         unit = f"[{p['unit']}]" if p["unit"] else ""
         print(f"    {p['name']:<20} {p['type']:<6} {unit:<8} {'; '.join(parameter_facts(p))}")
@@ -142,4 +152,3 @@ def show(args: argparse.Namespace) -> int:
         items = rows.items() if isinstance(rows, dict) else ((r["name"], r["description"]) for r in rows)
         for name, text in items:
             print(f"    {name:<20} {plain(text)}")
-    return 0

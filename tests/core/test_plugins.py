@@ -83,6 +83,19 @@ def test_plugins_show_prints_typed_parameters(acme_site: Path) -> None:
     assert missing.returncode == 2 and "nothing named 'nope'" in missing.stderr
 
 
+def test_plugins_show_every_kind_with_the_name() -> None:
+    """`retarget` is an algorithm, a controller and a step: all three are shown, or the one --kind picks."""
+    proc = run_cli("plugins", "show", "retarget")
+    assert proc.returncode == 0, proc.stderr
+    heads = [line.split()[0] for line in proc.stdout.splitlines() if line.split()[1:2] == ["retarget"]]
+    assert heads == ["algorithm", "controller", "step"]
+    one = run_cli("plugins", "show", "retarget", "--kind", "controller")
+    assert one.stdout.startswith("controller retarget") and "  settings:" in one.stdout
+    assert "\nalgorithm " not in one.stdout
+    none = run_cli("plugins", "show", "retarget", "--kind", "instrument")
+    assert none.returncode == 2 and "no instrument named 'retarget'" in none.stderr
+
+
 def test_add_plugin_at_run_time_all_or_nothing() -> None:
     from mirrorlab.core import Algorithm, PluginError, hookimpl
     from mirrorlab.core.registry import Registry
