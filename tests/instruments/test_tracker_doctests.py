@@ -10,7 +10,6 @@ import pytest
 MODULES = [
     "mirrorlab.instruments.line_tracker.sensor",
     "mirrorlab.instruments.line_tracker.view",
-    "mirrorlab.instruments.line_tracker.model",
     "mirrorlab.instruments.line_tracker.driver",
     "mirrorlab.instruments.virtual_lab.world",
     "mirrorlab.instruments.mirror_gimbal.dynamics",
