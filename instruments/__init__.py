@@ -34,4 +34,13 @@ def mirrorlab_register_instruments() -> list[type]:
     return [FilmScanner, LineTracker, MirrorGimbal, UltrasonicTracker, AngleSource, Actuator]
 
 
-__all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments"]
+@hookimpl
+def mirrorlab_register_steps() -> list[type]:
+    from .line_tracker.steps import STEPS as LINE
+    from .mirror_gimbal.steps import STEPS as GIMBAL
+    from .ultrasonic_tracker.steps import STEPS as ULTRASONIC
+
+    return [*ULTRASONIC, *LINE, *GIMBAL]
+
+
+__all__ = ["mirrorlab_recording_stopped", "mirrorlab_register_instruments", "mirrorlab_register_steps"]

@@ -86,9 +86,10 @@ class MirrorGimbalModel(LineSimulator):
     Parameters
     ----------
     world
-        The scene the detectors see; default: a white 250 mm ball 3 m in front, on the camera
-        direction. A :class:`SharedWorld` is seen by other simulators too (then this simulator runs
-        on the world's clock and logs the mirror's angles there, for the world's truth).
+        The scene the detectors see (both axes start turned onto its target); default: a white
+        250 mm ball 3 m in front, on the camera direction. A :class:`SharedWorld` is seen by other
+        simulators too (then this simulator runs on the world's clock and logs the mirror's angles
+        there, for the world's truth).
     seed
         Seed of the simulator's random generator.
     params
@@ -111,6 +112,14 @@ class MirrorGimbalModel(LineSimulator):
         super().__init__(seed)
         self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
         self.next_sample_ms = self.clock_ms
+        self.pose_on_target()
+
+    def pose_on_target(self) -> None:
+        """Turn both axes (mirror and detector) onto the target as it is now: the operator's aiming."""
+        for name, angle in zip(AXES, self.world.target_angles(self.clock_ms / 1000.0)):
+            axis = self.axes[name]
+            mirror = angle / axis.params.detector_ratio
+            axis.state = AxisState(gear=mirror, mirror=mirror, detector_shaft=mirror)
 
     @property
     def world(self) -> TrackingWorld:
@@ -393,10 +402,7 @@ class MirrorGimbalModel(LineSimulator):
         target = self.world.spheres[0]
         self.world = replace(self.world, spheres=(Sphere(path, target.radius, target.brightness),
                                                   *self.world.spheres[1:]))
-        for name, angle in zip(AXES, self.world.target_angles(t0)):
-            axis = self.axes[name]
-            mirror = angle / axis.params.detector_ratio
-            axis.state = AxisState(gear=mirror, mirror=mirror, detector_shaft=mirror)
+        self.pose_on_target()
         yield "OK"
 
     def truth_lines(self) -> list[str]:
