@@ -34,6 +34,19 @@ class SinusoidFit:
     used: int
 
 
+def uncut(m: ArrayLike, d: ArrayLike) -> np.ndarray:
+    """Which marks ``m`` (px) of size ``d`` (px) are whole: a run, not touching the sensor's ends.
+
+    Examples
+    --------
+    >>> uncut([255.5, 20.0, np.nan], [40.0, 60.0, np.nan]).tolist()
+    [True, False, False]
+    """
+    mm, dd = np.asarray(m, dtype=float), np.asarray(d, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return ~np.isnan(mm) & (mm - dd / 2 > 0.5) & (mm + dd / 2 < PIXELS - 1.5)
+
+
 def fit_sinusoid(t: ArrayLike, m: ArrayLike, d: ArrayLike, period: float) -> SinusoidFit:
     """Fit ``centre + amplitude sin(2 pi t / period + phase)`` to marks ``m`` (px) at times ``t`` (s).
 
@@ -48,7 +61,7 @@ def fit_sinusoid(t: ArrayLike, m: ArrayLike, d: ArrayLike, period: float) -> Sin
     (251.4, 255.5, 0.3, 23.4)
     """
     tt, mm, dd = (np.asarray(x, dtype=float) for x in (t, m, d))
-    inside = ~np.isnan(mm) & (mm - dd / 2 > 0.5) & (mm + dd / 2 < PIXELS - 1.5)
+    inside = uncut(mm, dd)
     w = 2.0 * math.pi / period
     basis = np.stack([np.sin(w * tt), np.cos(w * tt), np.ones_like(tt)], axis=1)[inside]
     (a, b, c), *_ = np.linalg.lstsq(basis, mm[inside], rcond=None)
