@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
-__all__ = ["Panel", "Trace", "plot_traces"]
+__all__ = ["Panel", "Trace", "plot_traces", "traces_figure"]
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class Panel:
 
 
 def plot_traces(path: os.PathLike[str] | str, panels: Sequence[Panel], title: str = "") -> Path:
-    """Write the ``panels`` (one above the other) to the PNG file ``path``; return its path.
+    """Write :func:`traces_figure` to the PNG file ``path``; return its path.
 
     Examples
     --------
@@ -52,6 +52,16 @@ def plot_traces(path: os.PathLike[str] | str, panels: Sequence[Panel], title: st
     >>> p.stat().st_size > 0
     True
     """
+    fig = traces_figure(panels, title)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    FigureCanvasAgg(fig)
+    fig.savefig(out, dpi=100)
+    return out
+
+
+def traces_figure(panels: Sequence[Panel], title: str = "") -> Figure:
+    """The ``panels``, one above the other, each with its title, axis labels and legend."""
     fig = Figure(figsize=(8, 3.2 * len(panels) + 0.6), layout="constrained")
     axes = np.atleast_1d(fig.subplots(len(panels), 1))
     for ax, panel in zip(axes, panels):
@@ -67,8 +77,4 @@ def plot_traces(path: os.PathLike[str] | str, panels: Sequence[Panel], title: st
         ax.legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(out, dpi=100)
-    return out
+    return fig
