@@ -14,8 +14,10 @@ import math
 import numpy as np
 import pytest
 from mirrorlab.core import Session, ValidationError
+from mirrorlab.instruments.line_tracker import LineTrackerModel
 from mirrorlab.instruments.line_tracker.sensor import angle_to_pixel
-from mirrorlab.instruments.virtual_lab.world import image_in_mirror, mirror_normal
+from mirrorlab.instruments.mirror_gimbal import MirrorGimbalModel
+from mirrorlab.instruments.virtual_lab.world import SharedWorld, image_in_mirror, mirror_normal
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, build_world
 
 WALK = {"scene": "walk", "range": 3000.0, "width": 600.0, "speed": 300.0, "start": 0.5}
@@ -73,3 +75,22 @@ def test_a_bad_world_setting_is_named_and_nothing_starts(tmp_path) -> None:
         with pytest.raises(ValidationError, match="world.scene"):
             s.add_instrument("fixed", "line_tracker", simulate=True)
         assert not s.instruments
+
+
+def test_simulators_of_a_shared_world_share_its_clock_and_its_loads() -> None:
+    """In process, on a stepped clock: one scene, one time base, and a SIM:LOAD seen by every simulator."""
+    now = [5.0]
+    shared = SharedWorld(build_world({**TRACKING_WORLD.defaults(), "scene": "still", "azimuth": 0.05}), lambda: now[0])
+    tracker, mirror = LineTrackerModel(shared, seed=1), MirrorGimbalModel(shared, seed=2)
+    assert tracker.execute("TIME?") == mirror.execute("TIME?") == ["OK 5000"]
+    now[0] = 7.5
+    tracker.advance(0.01)                      # the server's idle tick: the clock catches up with the world
+    mirror.advance(100.0)                      # and never runs ahead of it
+    assert tracker.execute("TIME?") == mirror.execute("TIME?") == ["OK 7500"]
+    assert mirror.execute("SIM:LOAD LINE 0 0 3000 100 0 0") == ["OK"]
+    assert tracker.world is mirror.world and tracker.world.target_position(7.5).tolist() == [0.0, 0.0, 3000.0]
+    assert shared.world_at(6.0).target_position(6.0)[0] == pytest.approx(3000.0 * math.sin(0.05))
+    now[0] = 8.5
+    tracker.advance(0.01)
+    assert tracker.execute("SIM:TRUTH?")[1] == f"TRUTH TARGET {math.degrees(math.atan(0.1 / 3)):.4f} " \
+        f"{float(angle_to_pixel(math.atan(0.1 / 3))):.3f}"
