@@ -21,6 +21,9 @@
     [controllers.loop.settings]
     gain = 0.5
 
+    [world]                        # optional: one simulated scene for every simulated instrument
+    scene = "walk"                 # keys: the world_parameters of the recipe's simulated plugins
+
     [[steps]]                      # executed in order
     action = "acquire"             # a registered step kind: preview | acquire | wait | run | ...
     seconds = 10
@@ -103,6 +106,7 @@ class Recipe:
     instruments: list[InstrumentPlan] = field(default_factory=list)
     steps: list[StepPlan] = field(default_factory=list)
     controllers: list[ControllerPlan] = field(default_factory=list)
+    world: dict[str, Any] | None = None
 
     def default_output(self, root: Path | None = None) -> Path:
         """``sessions/out/<recipe>-<UTC timestamp>.h5`` next to the recipe's folder."""
@@ -178,9 +182,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     problems: list[Problem] = []
 
     for key in data:
-        if key not in ("session", "instruments", "controllers", "steps"):
+        if key not in ("session", "instruments", "controllers", "steps", "world"):
             problems.append(Problem(key, "unknown top-level table; expected session, instruments, controllers, "
-                                    "steps", file))
+                                    "world, steps", file))
     session, more = SESSION_KEYS.problems(_table(data, "session", problems, file), "session", file)
     problems += more
 
@@ -218,6 +222,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
                                           values["timeout"], values["reconnect"], settings, simulator))
 
+    world = _world(data, instruments, registry, problems, file) if "world" in data else None
     controllers = [plan for label, table in _table(data, "controllers", problems, file).items()
                    if (plan := _controller_plan(label, table, instruments, registry, problems, file))]
 
@@ -256,7 +261,28 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     if problems:
         raise ValidationError(problems)
     return Recipe(path, text, list(overrides), data, session["description"], session["operator"],
-                  instruments, steps, controllers)
+                  instruments, steps, controllers, world)
+
+
+def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry: Registry,
+           problems: list[Problem], file: str) -> dict[str, Any] | None:
+    """Validate ``[world]`` against the world parameters of the recipe's simulated instruments."""
+    table = _table(data, "world", problems, file)
+    sets = {}
+    for plan in instruments:
+        params = registry.instrument(plan.plugin).world_parameters
+        if plan.simulate and params is not None:
+            sets.setdefault(id(params), params)
+    if not sets:
+        problems.append(Problem("world", "no simulated instrument of the recipe shares a world (their plugins "
+                                "declare no world_parameters); remove [world] or simulate a tracker", file))
+        return None
+    values: dict[str, Any] = {}
+    for params in sets.values():
+        typed, more = params.problems(table, "world", file)
+        problems += more
+        values.update(typed)
+    return values
 
 
 def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], registry: Registry,
@@ -341,7 +367,10 @@ def _table(data: Mapping[str, Any], key: str, problems: list[Problem], file: str
 
 def add_devices(session: Session, recipe: Recipe) -> None:
     """Connect the recipe's instruments, then bind its controllers, in an open session (nothing
-    acquires yet): what ``mirrorlab run`` does before the first step and ``mirrorlab tui`` on opening."""
+    acquires yet): what ``mirrorlab run`` does before the first step and ``mirrorlab tui`` on opening.
+    A recipe with a ``[world]`` gives the session that world first, so every simulator shares it."""
+    if recipe.world is not None:
+        session.set_world(recipe.world)
     for plan in recipe.instruments:
         session.add_instrument(plan.label, plan.plugin, port=plan.port or None, settings=plan.settings,
                                simulate=plan.simulate, simulator=plan.simulator, timeout=plan.timeout,

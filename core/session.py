@@ -47,7 +47,7 @@ from .algorithms import Algorithm, ResultRef, RunContext, execute, label_problem
 from .clock import SessionClock, parse_utc, utc_now_iso
 from .controller_runtime import ControllerRunner
 from .controllers import Controller
-from .devices import Instrument, SerialInstrument, SimulatorServer
+from .devices import Instrument, SerialInstrument, SimulatedWorld, SimulatorServer
 from .errors import Problem, SessionError, SessionExistsError, ValidationError
 from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
@@ -151,6 +151,8 @@ class Session:
         self.instruments: dict[str, Instrument] = {}
         self.controllers: dict[str, ControllerRunner] = {}
         self._simulators: dict[str, SimulatorServer] = {}
+        #: The simulated world this session's simulators share (:meth:`set_world`); ``None``: each its own.
+        self.world: SimulatedWorld | None = None
         # One lock for every change of state (instruments, acquisition, recording, closing), so a UI
         # thread and a script thread never race; snapshot() takes none.
         self._lock = threading.RLock()
@@ -402,9 +404,33 @@ class Session:
                                                          f" on {instrument.port}" if instrument.port else ""))
         return instrument
 
+    def set_world(self, settings: Mapping[str, Any]) -> SimulatedWorld:
+        """Give this session one simulated world, shared by the simulators added after this call.
+
+        ``settings`` are the world's keys (a recipe's ``[world]`` table), checked by the first
+        simulator that builds the world against its plugin's ``world_parameters`` (e.g. the
+        trackers': ``mirrorlab.instruments.virtual_lab.worlds``). The world runs on the session
+        clock, so its ground truth and the recorded streams share one time axis.
+
+        Raises
+        ------
+        SessionError
+            A simulator is already running: it would not see the world.
+        """
+        with self._lock:
+            self._require_writable("set the simulated world")
+            if self._simulators:
+                raise SessionError(f"set the simulated world before adding simulated instruments "
+                                   f"({', '.join(self._simulators)} already run without it)")
+            self.world = SimulatedWorld(settings, self.clock.now)
+            return self.world
+
     def _start_simulator(self, cls: type[Instrument], settings: dict[str, Any], options: dict[str, Any],
                          label: str) -> SimulatorServer:
-        model = cls.make_simulator(settings, options["seed"])
+        if self.world is not None and cls.world_parameters is not None:
+            model = cls.make_simulator(settings, options["seed"], world=self.world)
+        else:
+            model = cls.make_simulator(settings, options["seed"])
         server = SimulatorServer(model, options["transport"]).start()
         self._simulators[label] = server
         return server

@@ -13,6 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, traces_figure
 from mirrorlab.plugins.kinematics import figures as kin
 from mirrorlab.plugins.photogrammetry import figures as pg
 from mirrorlab.plugins.pipeline.report import (
@@ -47,6 +48,9 @@ def demo_report(frames: int = 12) -> DemoReport:
 t = np.linspace(0.0, 2.0, 30)
 xyz = np.stack([np.c_[t, t ** 2, 0 * t], np.c_[t, -t, t]], axis=1)
 FIGURES: dict[str, Callable[[], Figure]] = {
+    "tracker traces": lambda: traces_figure([Panel("search", "theta1 (deg)", "theta2 (deg)", [Trace(t, t, "path")]),
+                                             Panel("stage", "time (s)", "angle (deg)", [Trace(t, t, "target")])],
+                                            "tracker"),
     "demo trajectories.png": lambda: trajectories_figure(demo_report()),
     "demo angular.png": lambda: angular_figure(demo_report()),
     "kinematics derivatives.png": lambda: kin.derivatives_figure(t, ["A", "B"], xyz, xyz, xyz),

@@ -2,11 +2,11 @@
 
 from .instrument import Emit, Identity, Instrument, Reporter, SerialInstrument, Status
 from .protocol import LineClient, Reply
-from .simulator import CommandError, Delay, Lines, LineSimulator, SimulatorServer
+from .simulator import CommandError, Delay, Lines, LineSimulator, SimulatedWorld, SimulatorServer
 from .transport import PtyEndpoint, TcpEndpoint, TransportFaults, open_port
 
 __all__ = [
     "CommandError", "Delay", "Emit", "Identity", "Instrument", "LineClient", "LineSimulator", "Lines",
-    "PtyEndpoint", "Reply", "Reporter", "SerialInstrument", "SimulatorServer", "Status", "TcpEndpoint",
+    "PtyEndpoint", "Reply", "Reporter", "SerialInstrument", "SimulatedWorld", "SimulatorServer", "Status", "TcpEndpoint",
     "TransportFaults", "open_port",
 ]

@@ -52,7 +52,7 @@ from ..errors import (
 from ..params import ParameterSet
 from ..streams import StreamSpec
 from .protocol import LineClient, Reply
-from .simulator import LineSimulator
+from .simulator import LineSimulator, SimulatedWorld
 from .transport import open_port
 
 #: Lifecycle states of an instrument (:attr:`Instrument.state`).
@@ -120,6 +120,10 @@ class Instrument(ABC):
     description: ClassVar[str]
     parameters: ClassVar[ParameterSet] = ParameterSet()
     simulator: ClassVar[type[LineSimulator] | None] = None
+    #: The keys of a session's shared simulated world (a recipe's ``[world]`` table) this plugin's
+    #: simulator understands; ``None``: its simulator has a world of its own. A session with a world
+    #: hands it to :meth:`make_simulator` of these plugins only.
+    world_parameters: ClassVar[ParameterSet | None] = None
     supports_reconnect: ClassVar[bool] = True
     max_backoff: ClassVar[float] = 5.0
     #: Seconds the acquisition thread may take to end after :meth:`stop` (after ``ABORT``).
@@ -202,7 +206,7 @@ class Instrument(ABC):
         return False
 
     @classmethod
-    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> LineSimulator:
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int, world: SimulatedWorld | None = None) -> LineSimulator:
         """The device model a simulated instance with these ``settings`` talks to.
 
         Called by :meth:`mirrorlab.core.Session.add_instrument` (``simulate=True``), recipes
@@ -210,7 +214,8 @@ class Instrument(ABC):
         TCP socket and the driver talks to it like to the real device. ``seed`` makes its noise
         reproducible. The default builds :attr:`simulator` (``cls.simulator(seed=seed)``);
         override it when the model depends on the settings (the film scanner films the scene
-        or images its settings name).
+        or images its settings name), or to put the model in the session's shared ``world``
+        (given only to plugins that declare :attr:`world_parameters`; the default ignores it).
 
         Raises
         ------

@@ -17,15 +17,17 @@ import random
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypeVar
 
 from .transport import Endpoint, PtyEndpoint, TcpEndpoint
 
 log = logging.getLogger(__name__)
 
 Lines = Iterator["str | Delay"]
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -218,6 +220,49 @@ class LineSimulator:
     def fault_value(self, name: str, index: int = 0, default: float = 0.0) -> float:
         values = self.faults.get(name)
         return float(values[index]) if values and len(values) > index else default
+
+
+class SimulatedWorld:
+    """A session's shared simulated world: its settings, the session clock, and what simulators build from them.
+
+    A recipe's ``[world]`` table (validated against the :attr:`Instrument.world_parameters` of its
+    simulated instruments) becomes one ``SimulatedWorld`` per session
+    (:meth:`mirrorlab.core.Session.set_world`). Each simulator that shares it asks for the scene
+    through :meth:`shared`, so the first one builds it and the others get the same object: one
+    scene, on one clock, for every simulated instrument of the session.
+
+    Parameters
+    ----------
+    settings
+        The world's settings (typed values of the ``[world]`` table).
+    clock
+        The session clock, s (the world's time base).
+
+    Examples
+    --------
+    >>> w = SimulatedWorld({"scene": "still"}, clock=lambda: 1.5)
+    >>> a = w.shared("tracking", lambda settings, clock: [settings["scene"], clock()])
+    >>> a, w.shared("tracking", lambda settings, clock: None) is a
+    (['still', 1.5], True)
+    """
+
+    def __init__(self, settings: Mapping[str, Any], clock: Callable[[], float]) -> None:
+        self.settings = dict(settings)
+        self.clock = clock
+        self._built: dict[str, Any] = {}
+        self._lock = threading.Lock()
+
+    def shared(self, key: str, build: Callable[[Mapping[str, Any], Callable[[], float]], T]) -> T:
+        """The object stored under ``key``, built once by ``build(settings, clock)``."""
+        with self._lock:
+            if key not in self._built:
+                self._built[key] = build(self.settings, self.clock)
+            return self._built[key]
+
+    def get(self, key: str) -> Any:
+        """The object built under ``key``, or ``None`` if no simulator built it yet."""
+        with self._lock:
+            return self._built.get(key)
 
 
 class SimulatorServer:

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
+from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import LineTrackerModel
 from .sensor import CENTRE_PX, FOCAL_MM, MAX_CLOCK_HZ, MIN_CLOCK_HZ, PITCH_MM, PIXELS
@@ -67,6 +68,7 @@ class LineTracker(SerialInstrument):
     description = "Optical direction detector: cylindrical lens and 512-pixel line sensor (OLDT)"
     kind = "OLDT"
     simulator = LineTrackerModel
+    world_parameters = TRACKING_WORLD
     parameters = ParameterSet(
         Parameter("clock_hz", float, 6_500.0, unit="Hz", bounds=(MIN_CLOCK_HZ, MAX_CLOCK_HZ),
                   help="sensor clock: exposure and sampling period 512 / clock (78.8 ms at 6.5 kHz)"),
@@ -78,6 +80,11 @@ class LineTracker(SerialInstrument):
         Parameter("auto_step", int, 4, bounds=(1, 255), help="dT of the adaptive threshold, counts"),
         Parameter("d_ref", int, 100, bounds=(1, PIXELS), help="reference mark size of the adaptive threshold, px"),
     )
+
+    @classmethod
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int, world: SimulatedWorld | None = None) -> LineTrackerModel:
+        """The simulator, in the session's shared ``world`` if it has one (else its own: the turntable of §3.4)."""
+        return LineTrackerModel(shared_world(world), seed=seed)
 
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
                  timeout: float = 2.0, report: Any = None) -> None:

@@ -17,7 +17,14 @@ from collections.abc import Iterator
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
-from mirrorlab.instruments.virtual_lab.world import Path, Sphere, TrackingWorld, axis_angles
+from mirrorlab.instruments.virtual_lab.world import (
+    Path,
+    SharedWorld,
+    Sphere,
+    TrackingWorld,
+    axis_angles,
+    turntable_world,
+)
 
 from .detector import OpticalDetector
 from .sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
@@ -27,23 +34,6 @@ Lines = Iterator[str]
 BLUR_PX = 1.5                    # deliberate defocus (§3.2), px
 NOISE_COUNTS = 1.0               # read noise, counts
 TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
-DISC_RADIUS = 75.0               # the 150 mm disc, mm
-DISC_BRIGHTNESS = 0.35           # its reflectance so the 6.5 kHz exposure peaks near 190 counts (a choice)
-
-
-def turntable_world(radius: float = 160.0, period: float = 1.84, range_mm: float = 1000.0,
-                    start_s: float = 0.0) -> TrackingWorld:
-    """The §3.4 turntable: a disc circling ``radius`` mm every ``period`` s, ``range_mm`` ahead of ``+z``.
-
-    Examples
-    --------
-    >>> w = turntable_world()
-    >>> np.round(w.target_position(1.84 / 4), 3).tolist()      # a quarter turn: 160 mm to the side
-    [160.0, 0.0, 1000.0]
-    """
-    path = Path((0.0, 0.0, range_mm), radius=radius, rate=2 * math.pi / period, start_s=start_s, vertical=True)
-    return TrackingWorld((Sphere(path, DISC_RADIUS, DISC_BRIGHTNESS),), mirror_centre=(0.0, 0.0, 0.0),
-                         camera=(0.0, 0.0, 6000.0), lamp=(-2000.0, 0.0, range_mm))
 
 
 class LineTrackerModel(LineSimulator):
@@ -52,7 +42,8 @@ class LineTrackerModel(LineSimulator):
     Parameters
     ----------
     world
-        The scene (default :func:`turntable_world`). Shareable between simulators.
+        The scene (default :func:`turntable_world`), or a :class:`SharedWorld` that other
+        simulators see too (then this simulator runs on the world's clock).
     seed
         Seed of the simulator's random generator.
     mount, forward
@@ -64,17 +55,27 @@ class LineTrackerModel(LineSimulator):
     firmware = "1.0"
     serial_number = "SIM0004"
 
-    def __init__(self, world: TrackingWorld | None = None, seed: int = 0,
+    def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.world = world if world is not None else turntable_world()
+        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or turntable_world())
         self.mount = np.asarray(mount, dtype=float)
         self.forward = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
         self.np_rng = np.random.default_rng(seed)
         self.detector = OpticalDetector("M")
         self.pending: list[str] = []
-        self.next_sample_ms = 0.0
         super().__init__(seed)
+        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        self.next_sample_ms = self.clock_ms
+
+    @property
+    def world(self) -> TrackingWorld:
+        """The scene (of the shared world, if any)."""
+        return self.scene.world
+
+    @world.setter
+    def world(self, world: TrackingWorld) -> None:
+        self.scene.world = world
 
     def reset(self) -> None:
         """Power-on: the detector's defaults, streams off."""
@@ -126,8 +127,9 @@ class LineTrackerModel(LineSimulator):
                             NOISE_COUNTS, self.np_rng)
 
     def advance(self, seconds: float) -> None:
-        """Advance the clock, scanning every ``512 / clock`` s (plus ``TIMINGJITTER``)."""
-        super().advance(seconds)
+        """Advance the clock (a shared world's: up to its time), scanning every ``512 / clock`` s
+        (plus ``TIMINGJITTER``)."""
+        super().advance(self.scene.catch_up(seconds, self.clock_ms))
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
             self.detector.sample(self.signal(t), int(round(t * 1000.0)))

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
 from mirrorlab.instruments.line_tracker.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
+from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import MirrorGimbalModel
 
@@ -61,6 +62,7 @@ class MirrorGimbal(SerialInstrument):
     description = "Two-axis 1 m active mirror, DC motors, a line-sensor detector per axis (MGIM)"
     kind = "MGIM"
     simulator = MirrorGimbalModel
+    world_parameters = TRACKING_WORLD
     parameters = ParameterSet(
         Parameter("mode_h", str, "track", choices=("track", "pos", "hold", "off"),
                   help="horizontal axis: track = the detector loop (4.11)-(4.12), pos = follow h_angle"),
@@ -86,9 +88,11 @@ class MirrorGimbal(SerialInstrument):
         self._samples: queue.Queue[tuple[str, float, np.ndarray]] = queue.Queue(maxsize=100_000)
 
     @classmethod
-    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> MirrorGimbalModel:
-        """The simulator with its default world (a white 250 mm ball 3 m in front)."""
-        return MirrorGimbalModel(seed=seed)
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int,
+                       world: SimulatedWorld | None = None) -> MirrorGimbalModel:
+        """The simulator, in the session's shared ``world`` if it has one (else its own: a white 250 mm
+        ball 3 m in front)."""
+        return MirrorGimbalModel(shared_world(world), seed=seed)
 
     # -- settings ----------------------------------------------------------------------------------
     def apply_settings(self, settings: dict[str, Any]) -> None:

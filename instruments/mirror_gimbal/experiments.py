@@ -2,12 +2,16 @@
 
 A target circles the mirror at constant range, starting from rest on the detector's axis; the
 ``H`` axis tracks it (``TRACK``). The target is *lost* when the gimbal reports ``E40``. The limit
-is the smallest circling rate that is lost, found by bisection.
+is the smallest circling rate that is lost, found by bisection. :func:`fixed_mirror_width`: the
+fixed mirror a walk would need (Fig. 4.40).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
+from numpy.typing import ArrayLike
 
 from .dynamics import AxisParams
 from .model import MirrorGimbalModel
@@ -57,3 +61,31 @@ def tracking_limit(params: AxisParams | None = None, seed: int = 0, lo: float = 
         else:
             lo = mid
     return (lo + hi) / 2
+
+
+def fixed_mirror_width(camera: ArrayLike, centre: ArrayLike, points: ArrayLike, radius: float = 0.0) -> float:
+    """Side (mm) of a fixed square mirror at ``centre`` facing ``camera`` that shows every one of ``points``.
+
+    Each point's image is where the ray camera -> reflected point meets the mirror plane
+    (:func:`~mirrorlab.instruments.virtual_lab.world.image_in_mirror`'s construction), widened by
+    the footprint of a disc of ``radius`` mm; the side is the larger extent of those images along
+    the mirror's horizontal and vertical axes, mm (Fig. 4.40's A-B).
+
+    Examples
+    --------
+    >>> round(fixed_mirror_width([0, 0, 6000], [0, 0, 0], [[-1500, 0, 3000], [1500, 0, 3000]]), 3)
+    2000.0
+    """
+    c, o = np.asarray(camera, dtype=float), np.asarray(centre, dtype=float)
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    n = (c - o) / np.linalg.norm(c - o)
+    reflected = p - 2.0 * ((p - o) @ n)[:, None] * n
+    ray = reflected - c
+    s = ((o - c) @ n) / (ray @ n)
+    x = c + s[:, None] * ray - o
+    e1 = np.cross([0.0, 1.0, 0.0], n)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    foot = radius * s
+    extents = [np.ptp(np.concatenate([x @ e - foot, x @ e + foot])) for e in (e1, e2)]
+    return float(max(extents))

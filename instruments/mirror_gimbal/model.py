@@ -29,6 +29,7 @@ from mirrorlab.instruments.line_tracker.view import (
 )
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
+    SharedWorld,
     Sphere,
     TrackingWorld,
     image_in_mirror,
@@ -85,8 +86,10 @@ class MirrorGimbalModel(LineSimulator):
     Parameters
     ----------
     world
-        The scene the detectors see; default: a white 250 mm ball 3 m in front, on the camera
-        direction. Hand the same object to other simulators to share it.
+        The scene the detectors see (both axes start turned onto its target); default: a white
+        250 mm ball 3 m in front, on the camera direction. A :class:`SharedWorld` is seen by other
+        simulators too (then this simulator runs on the world's clock and logs the mirror's angles
+        there, for the world's truth).
     seed
         Seed of the simulator's random generator.
     params
@@ -98,15 +101,34 @@ class MirrorGimbalModel(LineSimulator):
     firmware = "1.0"
     serial_number = "SIM0003"
 
-    def __init__(self, world: TrackingWorld | None = None, seed: int = 0, params: AxisParams | None = None) -> None:
-        self.world = world if world is not None else TrackingWorld()
+    def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
+                 params: AxisParams | None = None) -> None:
+        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld())
         self.base_params = params or AxisParams()
         self.np_rng = np.random.default_rng(seed)
         self.axes = {a: Axis(a, self.base_params, detector=OpticalDetector(f"{a}:M")) for a in AXES}
         self.pending: list[str] = []
         self._stream_on = False
-        self.next_sample_ms = 0.0
         super().__init__(seed)
+        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        self.next_sample_ms = self.clock_ms
+        self.pose_on_target()
+
+    def pose_on_target(self) -> None:
+        """Turn both axes (mirror and detector) onto the target as it is now: the operator's aiming."""
+        for name, angle in zip(AXES, self.world.target_angles(self.clock_ms / 1000.0)):
+            axis = self.axes[name]
+            mirror = angle / axis.params.detector_ratio
+            axis.state = AxisState(gear=mirror, mirror=mirror, detector_shaft=mirror)
+
+    @property
+    def world(self) -> TrackingWorld:
+        """The scene (of the shared world, if any)."""
+        return self.scene.world
+
+    @world.setter
+    def world(self, world: TrackingWorld) -> None:
+        self.scene.world = world
 
     # -- state -------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -192,12 +214,14 @@ class MirrorGimbalModel(LineSimulator):
         return self.axes["H"].detector.period_s
 
     def advance(self, seconds: float) -> None:
-        """Advance the clock; run every detector scan and control step that falls due."""
-        super().advance(seconds)
+        """Advance the clock (a shared world's: up to its time); run every detector scan and control
+        step that falls due."""
+        super().advance(self.scene.catch_up(seconds, self.clock_ms))
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
             period = self.period_s + self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
             period = max(period, 1e-3)
+            self.scene.note_mirror(t, self.axes["H"].state.mirror, self.axes["V"].state.mirror)
             for axis in self.axes.values():
                 self._sample_axis(axis, t)
                 self._drive_axis(axis, period)
@@ -378,10 +402,7 @@ class MirrorGimbalModel(LineSimulator):
         target = self.world.spheres[0]
         self.world = replace(self.world, spheres=(Sphere(path, target.radius, target.brightness),
                                                   *self.world.spheres[1:]))
-        for name, angle in zip(AXES, self.world.target_angles(t0)):
-            axis = self.axes[name]
-            mirror = angle / axis.params.detector_ratio
-            axis.state = AxisState(gear=mirror, mirror=mirror, detector_shaft=mirror)
+        self.pose_on_target()
         yield "OK"
 
     def truth_lines(self) -> list[str]:

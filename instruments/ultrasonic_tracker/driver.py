@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
+from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import KH_DEFAULT, UltrasonicTrackerModel
 
@@ -56,6 +57,7 @@ class UltrasonicTracker(SerialInstrument):
     description = "Ultrasonic direction tracker: 12-element 40 kHz array, gradient search (USDF)"
     kind = "USDF"
     simulator = UltrasonicTrackerModel
+    world_parameters = TRACKING_WORLD
     parameters = ParameterSet(
         Parameter("psi", float, math.radians(45.0), unit="rad", bounds=(0.0, math.pi / 2),
                   help="steering phase step (45 deg deflects the beam about 7.5 deg)"),
@@ -67,6 +69,12 @@ class UltrasonicTracker(SerialInstrument):
         Parameter("rand_max", float, 0.018, unit="s", bounds=(0.001, 1.0), help="longest random emission period"),
         Parameter("track", bool, True, help="run the autonomous search (TRACK ON) while acquiring"),
     )
+
+    @classmethod
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int,
+                       world: SimulatedWorld | None = None) -> UltrasonicTrackerModel:
+        """The simulator, in the session's shared ``world`` if it has one (else its own: the 130 mm sphere 1.3 m ahead)."""
+        return UltrasonicTrackerModel(shared_world(world), seed=seed)
 
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
                  timeout: float = 2.0, report: Any = None) -> None:

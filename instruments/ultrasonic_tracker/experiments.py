@@ -8,6 +8,8 @@
   ``h0 / cycle`` falls behind only slowly, so within the finite sweep this limit lies a little
   above that theoretical bound.
 * :func:`cycle_times`: the modelled duration of each search cycle.
+* :func:`stage_tracking`: a target on the x-y stage (Fig. 4.22), a line or an ellipse, followed
+  for whole cycles; the pointing error against the thesis's accuracy of about 5 deg.
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, build_world
 
-from .model import DEFAULT_SERVO, Servo, UltrasonicTrackerModel
+from .model import DEFAULT_SERVO, TARGET_RADIUS, Servo, UltrasonicTrackerModel
 
 MAIN_LOBE = math.radians(15.0)
 
@@ -108,3 +111,32 @@ def cycle_times(range_mm: float = 1300.0, cycles: int = 50, seed: int = 0) -> np
         model.advance(0.05)
         stamps += [int(line.split()[1]) for line in model.stream_lines() if line.startswith("!TRK")]
     return np.diff(stamps[: cycles + 1]) / 1000.0
+
+
+def stage_tracking(scene: str = "stage_line", width: float = 600.0, height: float = 0.0, period: float = 50.0,
+                   cycles: float = 1.0, range_mm: float = 1000.0, seed: int = 0,
+                   step: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Track the 130 mm sphere on the x-y stage (Fig. 4.22) for ``cycles`` stage cycles of ``period`` s.
+
+    The stage moves the sphere ``range_mm`` ahead on a line of stroke ``width`` (``"stage_line"``)
+    or an ellipse ``width`` x ``height`` (``"stage_ellipse"``), mm, starting 1 s after the search.
+    Returns times (s), true target angles and platform angles ``(n, 2)`` (theta1, theta2, rad) and
+    the pointing error (rad), every ``step`` s.
+
+    Examples
+    --------
+    >>> t, target, platform, error = stage_tracking(period=17.0, cycles=0.25)
+    >>> bool(np.degrees(error[20:]).max() < 5.0), round(float(np.degrees(np.ptp(target[:, 0]))))
+    (True, 17)
+    """
+    world = build_world({**TRACKING_WORLD.defaults(), "scene": scene, "width": width, "height": height,
+                         "period": period, "range": range_mm, "start": 1.0, "target_radius": TARGET_RADIUS})
+    model = UltrasonicTrackerModel(world, seed=seed)
+    model.execute("TRACK ON")
+    rows = []
+    for _ in range(int(round((1.0 + cycles * period) / step))):
+        model.advance(step)
+        platform, error = _pointing(model)
+        rows.append([model.clock_ms / 1000.0, *model.target_angles(model.clock_ms / 1000.0), *platform, error])
+    out = np.array(rows)
+    return out[:, 0], out[:, 1:3], out[:, 3:5], out[:, 5]

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, Delay, LineSimulator
-from mirrorlab.instruments.virtual_lab.world import Path, Sphere, TrackingWorld
+from mirrorlab.instruments.virtual_lab.world import Path, SharedWorld, Sphere, TrackingWorld
 
 from .acoustics import PITCH, speed_of_sound, wavenumber
 from .echoes import common_arrivals, echo_arrivals, gated_pressure
@@ -76,7 +76,8 @@ class UltrasonicTrackerModel(LineSimulator):
     Parameters
     ----------
     world
-        The scene (default: the 130 mm sphere 1.3 m ahead). Shareable between simulators.
+        The scene (default: the 130 mm sphere 1.3 m ahead), or a :class:`SharedWorld` that other
+        simulators see too (then this simulator runs on the world's clock).
     seed
         Seed of the simulator's random generator.
     servo
@@ -91,11 +92,11 @@ class UltrasonicTrackerModel(LineSimulator):
     firmware = "1.0"
     serial_number = "SIM0002"
 
-    def __init__(self, world: TrackingWorld | None = None, seed: int = 0, servo: Servo | None = DEFAULT_SERVO,
-                 mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
+                 servo: Servo | None = DEFAULT_SERVO, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.world = world if world is not None else TrackingWorld(
-            (Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),))
+        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld(
+            (Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),)))
         self.servo = servo
         self.mount = np.asarray(mount, dtype=float)
         x = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
@@ -104,8 +105,18 @@ class UltrasonicTrackerModel(LineSimulator):
         self.np_rng = np.random.default_rng(seed)
         self.theta = np.zeros(2)
         self.rate = np.zeros(2)
-        self.physics_s = 0.0
         super().__init__(seed)
+        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        self.physics_s = self.clock_ms / 1000.0
+
+    @property
+    def world(self) -> TrackingWorld:
+        """The scene (of the shared world, if any)."""
+        return self.scene.world
+
+    @world.setter
+    def world(self, world: TrackingWorld) -> None:
+        self.scene.world = world
 
     # -- state -------------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -195,8 +206,9 @@ class UltrasonicTrackerModel(LineSimulator):
             self.physics_s += h
 
     def advance(self, seconds: float) -> None:
-        """Advance the clock: the platform moves, and in TRACK mode search cycles run as they fall due."""
-        super().advance(seconds)
+        """Advance the clock (a shared world's: up to its time): the platform moves, and in TRACK mode
+        search cycles run as they fall due."""
+        super().advance(self.scene.catch_up(seconds, self.clock_ms))
         now = self.clock_ms / 1000.0
         while self.tracking and self.next_cycle_s <= now:
             self.next_cycle_s += self._cycle(self.next_cycle_s)

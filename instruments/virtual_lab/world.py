@@ -1,8 +1,9 @@
 """The tracking world: moving spheres, the mirror centre, the camera and the lamp.
 
 One :class:`TrackingWorld` is the ground-truth scene of the direction trackers and the active
-mirror (``instruments.md`` §2–§4). A simulator takes it as its ``world`` constructor argument, so
-one object handed to several simulators makes them see the same scene. World frame: right-handed,
+mirror (``instruments.md`` §2–§4). A simulator takes it, or a :class:`SharedWorld` holding it, as
+its ``world`` constructor argument: one :class:`SharedWorld` handed to several simulators makes them
+see the same scene on one clock (a session's ``[world]``, :mod:`.worlds`). World frame: right-handed,
 mm, ``y`` up; the mirror centre ``O`` at the origin by default and the camera 6 m away along ``+z``.
 
 Axis angles (:func:`axis_angles`) are those of the gimbal's Cardan mount: ``h`` about ``+y`` from the
@@ -11,7 +12,10 @@ camera direction, ``v`` the elevation above the camera direction's elevation, bo
 
 from __future__ import annotations
 
+import bisect
 import math
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +45,11 @@ class Path:
     vertical
         The circle lies in the vertical ``x``-``y`` plane (a turntable facing ``+z``), its angle
         measured from ``+y`` toward ``+x``; otherwise it is horizontal, about ``+y``.
+    axes
+        An ellipse (or, with one axis zero, a back-and-forth line) instead of a circle: the point is
+        ``origin + axes[0] sin(a) + axes[1] cos(a)``, ``a = phase + rate (t - start_s)``, mm.
+    end_s
+        Time the motion stops (the point stays where it is then), s.
 
     Examples
     --------
@@ -49,6 +58,11 @@ class Path:
     [1000.0, 0.0, 0.0]
     >>> (np.round(Path((0.0, 0.0, 1000.0), radius=160.0, rate=1.0, vertical=True).position(0.0), 6) + 0.0).tolist()
     [0.0, 160.0, 1000.0]
+    >>> stage = Path((0.0, 0.0, 1000.0), axes=((100.0, 0.0, 0.0), (0.0, 0.0, 0.0)), rate=math.pi)
+    >>> np.round(stage.position(0.5), 6).tolist()
+    [100.0, 0.0, 1000.0]
+    >>> Path(velocity=(1.0, 0.0, 0.0), end_s=2.0).position(5.0).tolist()
+    [2.0, 0.0, 0.0]
     """
 
     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -58,11 +72,17 @@ class Path:
     phase: float = 0.0
     start_s: float = 0.0
     vertical: bool = False
+    axes: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    end_s: float = math.inf
 
     def position(self, t: float) -> FloatArray:
         """Position at time ``t`` (s), mm ``(3,)``."""
-        dt = max(0.0, t - self.start_s)
+        dt = max(0.0, min(t, self.end_s) - self.start_s)
         o = np.asarray(self.origin, dtype=float)
+        if self.axes is not None:
+            a = self.phase + self.rate * dt
+            return o + math.sin(a) * np.asarray(self.axes[0], dtype=float) \
+                + math.cos(a) * np.asarray(self.axes[1], dtype=float)
         if self.radius == 0.0:
             return o + dt * np.asarray(self.velocity, dtype=float)
         a = self.phase + self.rate * dt
@@ -130,6 +150,150 @@ class TrackingWorld:
         """Illumination of ``point`` relative to a lamp at ``reference`` mm: ``(reference / distance)^2``."""
         d = float(np.linalg.norm(np.asarray(point, dtype=float) - np.asarray(self.lamp, dtype=float)))
         return (reference / max(d, 1.0)) ** 2
+
+
+def turntable_world(radius: float = 160.0, period: float = 1.84, range_mm: float = 1000.0,
+                    start_s: float = 0.0) -> TrackingWorld:
+    """The §3.4 turntable: a 150 mm disc circling ``radius`` mm every ``period`` s, ``range_mm`` ahead of ``+z``.
+
+    The disc turns in the plane facing the detector (at the origin, looking along ``+z``); one lamp
+    2 m to the side (``-x``: the low-pixel side of a detector is lit, as in Fig. 4.34). The disc's
+    reflectance 0.35 makes a 6.5 kHz exposure peak near 190 counts (a simulator choice).
+
+    Examples
+    --------
+    >>> w = turntable_world()
+    >>> np.round(w.target_position(1.84 / 4), 3).tolist()      # a quarter turn: 160 mm to the side
+    [160.0, 0.0, 1000.0]
+    """
+    path = Path((0.0, 0.0, range_mm), radius=radius, rate=2 * math.pi / period, start_s=start_s, vertical=True)
+    return TrackingWorld((Sphere(path, DISC_RADIUS, DISC_BRIGHTNESS),), mirror_centre=(0.0, 0.0, 0.0),
+                         camera=(0.0, 0.0, 6000.0), lamp=(-2000.0, 0.0, range_mm))
+
+
+DISC_RADIUS = 75.0               # the 150 mm turntable disc, mm
+DISC_BRIGHTNESS = 0.35
+
+
+class SharedWorld:
+    """A :class:`TrackingWorld` that several simulators see at once, on one clock.
+
+    A simulator given a ``SharedWorld`` reads its scene from :attr:`world` (so a ``SIM:LOAD`` on one
+    simulator moves the target for all of them) and, when the world has a ``clock``, runs on it:
+    its own clock (``TIME?``, stream stamps) follows :meth:`now`, so every simulator of the world
+    agrees on the time (with a session's clock: session seconds). Without a ``clock`` the world is
+    private: the simulator keeps its own clock (and ``SIM:CLOCK FAST`` skips command delays).
+
+    The active mirror logs its angles here (:meth:`note_mirror`), so the truth of the world
+    (:meth:`truth`) has the mirror normal at any time.
+
+    Parameters
+    ----------
+    world
+        The scene.
+    clock
+        World time, s (e.g. a session's ``clock.now``); ``None``: a private world.
+
+    Examples
+    --------
+    >>> shared = SharedWorld(TrackingWorld(), clock=lambda: 2.0)
+    >>> shared.catch_up(0.5, clock_ms=1500.0), SharedWorld(TrackingWorld()).catch_up(0.5, clock_ms=1500.0)
+    (0.5, 0.5)
+    """
+
+    def __init__(self, world: TrackingWorld, clock: Callable[[], float] | None = None) -> None:
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._times: list[float] = [-math.inf]
+        self._worlds: list[TrackingWorld] = [world]
+        self._mirror: list[tuple[float, float, float]] = []
+
+    @property
+    def shared(self) -> bool:
+        """Whether the world runs on its own clock (shared), not on each simulator's."""
+        return self.clock is not None
+
+    def now(self) -> float:
+        """World time, s (0 for a private world)."""
+        return self.clock() if self.clock is not None else 0.0
+
+    def catch_up(self, seconds: float, clock_ms: float) -> float:
+        """How far (s) a simulator whose clock reads ``clock_ms`` advances when its server asks for ``seconds``.
+
+        Private world: ``seconds``. Shared world: up to the world's time, never back.
+        """
+        if self.clock is None:
+            return seconds
+        return max(0.0, self.clock() - clock_ms / 1000.0)
+
+    @property
+    def world(self) -> TrackingWorld:
+        """The scene now."""
+        return self._worlds[-1]
+
+    @world.setter
+    def world(self, world: TrackingWorld) -> None:
+        with self._lock:
+            if self.clock is None:              # private: no history to keep
+                self._worlds[-1] = world
+            else:
+                self._times.append(self.now())
+                self._worlds.append(world)
+
+    def world_at(self, t: float) -> TrackingWorld:
+        """The scene as it was at world time ``t`` (s): a ``SIM:LOAD`` replaces it from then on."""
+        return self._worlds[bisect.bisect_right(self._times, t) - 1]
+
+    def note_mirror(self, t: float, h: float, v: float) -> None:
+        """The active mirror's Cardan angles ``(h, v)`` (rad) at world time ``t`` (s); kept for a shared world."""
+        if self.clock is not None:
+            with self._lock:
+                self._mirror.append((t, h, v))
+
+    def mirror_angles(self, times: ArrayLike) -> FloatArray:
+        """Mirror angles ``(n, 2)`` rad at ``times`` (s), linear between the logged samples.
+
+        ``(0, 0)`` (facing the camera: a fixed mirror) when no active mirror logged any.
+        """
+        t = np.atleast_1d(np.asarray(times, dtype=float))
+        with self._lock:
+            log = np.array(self._mirror, dtype=float).reshape(-1, 3)
+        if not len(log):
+            return np.zeros((t.size, 2))
+        return np.stack([np.interp(t, log[:, 0], log[:, 1]), np.interp(t, log[:, 0], log[:, 2])], axis=1)
+
+    def truth(self, times: ArrayLike) -> dict[str, FloatArray]:
+        """Ground truth at ``times`` (s): see :func:`world_truth`, with the logged mirror angles."""
+        t = np.atleast_1d(np.asarray(times, dtype=float))
+        angles = self.mirror_angles(t)
+        rows = [world_truth(self.world_at(float(tk)), float(tk), angles[k]) for k, tk in enumerate(t)]
+        return {key: np.array([r[key] for r in rows]) for key in rows[0]} if rows else {}
+
+
+def world_truth(world: TrackingWorld, t: float, mirror: ArrayLike = (0.0, 0.0)) -> dict[str, FloatArray]:
+    """Truth of ``world`` at time ``t`` (s) with the mirror at Cardan angles ``mirror`` (rad).
+
+    Returns ``target`` (mm), ``direction`` (unit vector from ``O`` to the target),
+    ``target_angles`` (its ``(h, v)``, rad), ``mirror_angles`` (rad), ``normal`` (unit mirror
+    normal) and ``in_mirror`` (the target's image, a disc of its radius, lies inside the mirror as
+    the camera sees it, :func:`image_in_mirror`).
+
+    Examples
+    --------
+    >>> w = TrackingWorld((Sphere(Path((3000.0, 0.0, 3000.0))),))
+    >>> tr = world_truth(w, 0.0, (math.radians(22.5), 0.0))   # the normal bisects camera and target
+    >>> bool(tr["in_mirror"]), bool(world_truth(w, 0.0)["in_mirror"])
+    (True, False)
+    """
+    p = world.target_position(t)
+    o = np.asarray(world.mirror_centre, dtype=float)
+    h, v = (float(a) for a in np.asarray(mirror, dtype=float))
+    normal = mirror_normal(h, v, world.camera_direction)
+    return {"target": p, "direction": (p - o) / np.linalg.norm(p - o),
+            "target_angles": np.array(world.target_angles(t)), "mirror_angles": np.array([h, v]),
+            "normal": normal,
+            "in_mirror": np.array(image_in_mirror(world.camera, p, o, normal, world.mirror_size,
+                                                  world.spheres[0].radius))}
 
 
 def axis_angles(direction: ArrayLike, camera_direction: ArrayLike) -> tuple[FloatArray, FloatArray]:

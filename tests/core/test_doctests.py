@@ -8,7 +8,8 @@ import importlib
 import pytest
 
 MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
-           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest"]
+           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
+           "mirrorlab.core.devices.simulator"]
 
 
 @pytest.mark.parametrize("name", MODULES)

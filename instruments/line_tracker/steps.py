@@ -1,0 +1,89 @@
+"""``turntable_report``: the line tracker on the turntable (Fig. 4.35), next to the thesis.
+
+Reads the recorded ``mark`` stream and the shared world's truth, fits the sinusoid of the
+turntable's period (:mod:`.experiments`), prints it beside the thesis's ±251 px at 78.8 ms and
+writes a PNG figure next to the session.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
+
+from .experiments import fit_sinusoid, uncut
+from .sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
+
+if TYPE_CHECKING:
+    from mirrorlab.core import Registry, Session
+
+#: Fig. 4.35 and §3.4: amplitude (px, printed and as corrected in spec §6.11), sample period (s), samples per turn.
+THESIS = {"amplitude": 251.0, "sample_period": 0.0788, "samples": 23.4}
+
+
+class TurntableReport(Step):
+    """``action = "turntable_report"``: the recorded turntable trace against Fig. 4.35 and the truth."""
+
+    name = "turntable_report"
+    version = "1.0.0"
+    description = "fit the line tracker's turntable trace (amplitude, period) and print it next to Fig. 4.35; PNG"
+    parameters = ParameterSet(
+        Parameter("instrument", str, "tracker", help="the simulated line_tracker watching the turntable"),
+        Parameter("period", float, 1.84, unit="s", bounds=(0.01, 3600.0), help="the turntable's period"),
+        Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
+    )
+
+    @classmethod
+    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
+                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
+        values, problems = cls.parameters.problems(table, where, file)
+        if values.get("instrument") and values["instrument"] not in instruments:
+            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
+                                    f"it has: {', '.join(instruments) or 'none'}", file))
+        return values, problems
+
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
+        marks = session.stream(values["instrument"], "mark")
+        t, m, d = marks.times, marks.data[:, 0], marks.data[:, 1]
+        fit = fit_sinusoid(t, m, d, values["period"])
+        root = latest_truth(session)
+        tr = truth_arrays(session, root)
+        expected = angle_to_pixel(np.interp(t, tr["time"], tr["target_angles"][:, 0]))
+        off = np.abs(m - expected)[uncut(m, d)]
+        lit, dark = d[m < CENTRE_PX - 55], d[m > CENTRE_PX + 55]
+        corrected = 160.0 * FOCAL_MM / PITCH_MM / 1000.0
+        lines = [f"turntable (Fig. 4.35): line tracker {values['instrument']!r}, {t[-1] - t[0]:.1f} s recorded "
+                 f"through its driver, {fit.used} of {t.size} scans fitted",
+                 f"sample period: {1000 * fit.sample_period:.2f} ms (thesis: {1000 * THESIS['sample_period']:.1f} ms "
+                 "at 6.5 kHz)",
+                 f"samples per turn: {fit.samples_per_cycle:.1f} (thesis: {THESIS['samples']})",
+                 f"amplitude: +-{fit.amplitude:.2f} px (thesis: +-{THESIS['amplitude']:.0f} px; "
+                 f"0.16 x 44 / 0.028 = {corrected:.1f} px, spec §6.11)",
+                 f"centre {fit.centre:.1f} px, residual {fit.rms:.2f} px RMS; against /{root}: "
+                 f"{np.median(off):.2f} px median, {off.max():.2f} px max (whole runs; a few ms of "
+                 "stamping delay at up to 860 px/s)",
+                 f"run size: {np.nanmean(lit):.0f} px on the lit side, {np.nanmean(dark):.0f} px on the dark side "
+                 "(Fig. 4.34: wider on the lit side)"]
+        w = 2 * np.pi / values["period"]
+        tt = np.linspace(t[0], t[-1], 800)
+        figure = plot_traces(figures_folder(session, values["figures"]) / "turntable_trace.png", [
+            Panel("mark position on the line sensor", "session time (s)", "pixel (px)", [
+                Trace(t, m, "recorded mark m", "o"),
+                Trace(tt, fit.centre + fit.amplitude * np.sin(w * tt + fit.phase),
+                      f"fitted sinusoid +-{fit.amplitude:.1f} px"),
+                Trace(tt, angle_to_pixel(np.interp(tt, tr["time"], tr["target_angles"][:, 0])), "truth", "--")]),
+            Panel("mark size (adaptive threshold off)", "session time (s)", "run size d (px)",
+                  [Trace(t, d, "recorded d", ".-")])],
+            "line tracker on the turntable (Fig. 4.35)")
+        session.write_group(f"report/turntable_{root.rpartition('/')[2]}",
+                            {"amplitude_px": fit.amplitude, "sample_period_s": fit.sample_period,
+                             "centre_px": fit.centre, "rms_px": fit.rms},
+                            {"instrument": values["instrument"], "truth": "/" + root})
+        print("\n".join(lines) + f"\nfigure: {figure}", flush=True)
+
+
+STEPS = [TurntableReport]
