@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
 
 from .model import LineTrackerModel
 from .sensor import CENTRE_PX, FOCAL_MM, MAX_CLOCK_HZ, MIN_CLOCK_HZ, PITCH_MM, PIXELS
@@ -107,7 +107,8 @@ class LineTracker(SerialInstrument):
         super().on_unsolicited(line)
 
     def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
+        clock = DeviceClock(emit.now)
+        clock.anchor(self)   # once per acquisition: a replug restarts the device clock
         while not self._marks.empty():
             self._marks.get_nowait()
         self.query("STREAM ON")
@@ -120,7 +121,7 @@ class LineTracker(SerialInstrument):
                     continue
                 while not self._marks.empty():
                     rows.append(self._marks.get_nowait())
-                emit("mark", np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
+                emit("mark", np.array([clock.session_time(r[0]) for r in rows]), np.array([r[1] for r in rows]))
         finally:
             if self.client is not None and self.client.alive:
                 try:

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
 from mirrorlab.instruments.line_tracker.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
 
 from .model import MirrorGimbalModel
@@ -134,7 +134,8 @@ class MirrorGimbal(SerialInstrument):
 
     def acquire(self, emit: Emit, stop: threading.Event) -> None:
         # Device clock (ms since power-up) -> session time, anchored once per acquisition.
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
+        clock = DeviceClock(emit.now)
+        clock.anchor(self)
         while not self._samples.empty():
             self._samples.get_nowait()
         self.query("STREAM ON")
@@ -152,7 +153,7 @@ class MirrorGimbal(SerialInstrument):
                     batch[axis].append((t, values))
                 for axis, rows in batch.items():
                     if rows:
-                        emit(axis, np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
+                        emit(axis, np.array([clock.session_time(r[0]) for r in rows]), np.array([r[1] for r in rows]))
         finally:
             if self.client is not None and self.client.alive:
                 try:

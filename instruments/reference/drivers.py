@@ -13,7 +13,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
 
 from .models import ActuatorModel, AngleSourceModel
 
@@ -28,7 +28,7 @@ class _StreamingInstrument(SerialInstrument):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._emit: Emit | None = None
-        self._offset = 0.0  # session time of device time 0, s
+        self._clock: DeviceClock | None = None
 
     def apply_settings(self, settings: dict[str, Any]) -> None:
         self.query(f"RATE {settings['rate']:g}")
@@ -37,21 +37,22 @@ class _StreamingInstrument(SerialInstrument):
         return [StreamSpec(self.stream_name, "f8", (), "rad", self.settings["rate"], self.stream_description)]
 
     def on_unsolicited(self, line: str) -> None:
-        emit = self._emit
-        if not line.startswith(f"{self.tag} ") or emit is None:
+        emit, clock = self._emit, self._clock
+        if not line.startswith(f"{self.tag} ") or emit is None or clock is None:
             super().on_unsolicited(line)
             return
         try:
             _, us, urad = line.split()
-            t, value = self._offset + int(us) * 1e-6, int(urad) * 1e-6
+            t, value = int(us) * 1e-6, int(urad) * 1e-6
         except ValueError:
             self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line {line!r}")
             return
-        emit(self.stream_name, [t], [value])
+        emit(self.stream_name, [clock.session_time(t)], [value])
 
     def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        # The device clock (ms since power-up) anchored to session time once per acquisition.
-        self._offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
+        # The device clock anchored to session time once per acquisition (a replug restarts it).
+        self._clock = DeviceClock(emit.now)
+        self._clock.anchor(self)
         self._emit = emit
         self.query("STREAM ON")
         try:

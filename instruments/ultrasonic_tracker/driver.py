@@ -8,18 +8,17 @@ counts, lost, end stop, quiet)``. API units rad and s; the wire speaks degrees a
 from __future__ import annotations
 
 import math
-import queue
 import threading
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
 
 from .model import KH_DEFAULT, UltrasonicTrackerModel
 
-SILENCE_S = 0.5                  # no cycle for this long: check the link with PING
+SILENCE_S = 0.5                  # the link is checked (and the status cached) this often, s
 FLAGS = "LEQ"
 
 
@@ -71,7 +70,8 @@ class UltrasonicTracker(SerialInstrument):
     def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
                  timeout: float = 2.0, report: Any = None) -> None:
         super().__init__(label, port, settings, timeout, report)
-        self._cycles: queue.Queue[tuple[float, np.ndarray]] = queue.Queue(maxsize=100_000)
+        self._emit: Emit | None = None           # set while acquiring
+        self._clock: DeviceClock | None = None
 
     def apply_settings(self, settings: dict[str, Any]) -> None:
         if settings["rand_min"] > settings["rand_max"]:
@@ -88,32 +88,32 @@ class UltrasonicTracker(SerialInstrument):
                            "lost, end stop, quiet (0/1)")]
 
     def on_unsolicited(self, line: str) -> None:
+        # Reader thread: each cycle is published as it arrives, without a further thread hop.
         if line.startswith("TRK "):
+            emit, clock = self._emit, self._clock
+            if emit is None or clock is None:
+                return                          # a cycle finished after STREAM OFF
             try:
-                self._cycles.put_nowait(parse_cycle(line))
-            except (ProtocolError, queue.Full) as exc:
+                t, row = parse_cycle(line)
+            except ProtocolError as exc:
                 self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line ({exc})")
+                return
+            emit("direction", [clock.session_time(t)], row[None])
             return
         super().on_unsolicited(line)
 
     def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
-        while not self._cycles.empty():
-            self._cycles.get_nowait()
+        self._clock = DeviceClock(emit.now)
+        self._clock.anchor(self)                # the device clock restarts after a replug
+        self._emit = emit
         self.query("STREAM ON")
         if self.settings["track"]:
             self.query("TRACK ON")
         try:
-            while not stop.is_set():
-                try:
-                    rows = [self._cycles.get(timeout=SILENCE_S)]
-                except queue.Empty:
-                    self.query("PING")
-                    continue
-                while not self._cycles.empty():
-                    rows.append(self._cycles.get_nowait())
-                emit("direction", np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
+            while not stop.wait(SILENCE_S):
+                self.last_status = self.status()   # a dead link raises here: the base class reconnects
         finally:
+            self._emit = None
             if self.client is not None and self.client.alive:
                 try:
                     self.query("TRACK OFF")

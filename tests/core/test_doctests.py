@@ -8,7 +8,7 @@ import importlib
 import pytest
 
 MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
-           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options"]
+           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options", "mirrorlab.core.devices.streaming"]
 
 
 @pytest.mark.parametrize("name", MODULES)
