@@ -3,11 +3,11 @@
 from .instrument import Emit, Identity, Instrument, Reporter, SerialInstrument, Status
 from .protocol import LineClient, Reply
 from .simulator import CommandError, Delay, Lines, LineSimulator, SimulatorServer
-from .streaming import DeviceClock
+from .streaming import DeviceClock, StreamingInstrument, StreamSample
 from .transport import PtyEndpoint, TcpEndpoint, TransportFaults, open_port
 
 __all__ = [
     "CommandError", "Delay", "DeviceClock", "Emit", "Identity", "Instrument", "LineClient", "LineSimulator", "Lines",
-    "PtyEndpoint", "Reply", "Reporter", "SerialInstrument", "SimulatorServer", "Status", "TcpEndpoint",
-    "TransportFaults", "open_port",
+    "PtyEndpoint", "Reply", "Reporter", "SerialInstrument", "SimulatorServer", "Status", "StreamSample",
+    "StreamingInstrument", "TcpEndpoint", "TransportFaults", "open_port",
 ]

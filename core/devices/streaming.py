@@ -1,17 +1,26 @@
-"""Streaming line-protocol devices: the device clock of their stream lines, mapped to session time.
+"""Streaming line-protocol devices: samples as unsolicited lines, stamped by the device's clock.
 
-A streaming device stamps each ``!`` line with its own clock (ms or µs since power-up, spec
-``instruments.md`` §0.2). :class:`DeviceClock` turns those stamps into session seconds, the one
-time base of a session, so that a sample's time says when the device took it, not when the host
-got round to reading it: the latency a controller records (``ack − sample time``) then counts the
-whole way from the device to the acknowledgement.
+A streaming device sends each sample as a ``!`` line stamped with its own clock (ms or µs since
+power-up, spec ``instruments.md`` §0.2) while ``STREAM ON``. :class:`DeviceClock` turns those
+stamps into session seconds, the one time base of a session, so that a sample's time says when
+the device took it, not when the host got round to reading it: the latency a controller records
+(``ack − sample time``) then counts the whole way from the device to the acknowledgement.
+:class:`StreamingInstrument` is the base class of such drivers: it publishes each line as it
+arrives and runs the stream's start, link check and stop.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Protocol
+import threading
+import time
+from abc import abstractmethod
+from collections.abc import Callable, Mapping
+from typing import Any, NamedTuple, Protocol
 
+import numpy as np
+
+from ..errors import DeviceError, ProtocolError
+from .instrument import Emit, Reporter, SerialInstrument
 from .protocol import Reply
 
 
@@ -74,3 +83,94 @@ class DeviceClock:
             raise RuntimeError("DeviceClock.session_time() before anchor(): anchor when acquisition starts")
         self.offset = min(self.offset, self.now() - device_s)
         return device_s + self.offset
+
+
+class StreamSample(NamedTuple):
+    """One parsed stream line: which stream, when the device took it, what it measured."""
+
+    stream: str
+    #: Device time of the sample, s since the device's power-up.
+    device_s: float
+    #: One sample of the stream, in the shape its :class:`~mirrorlab.core.StreamSpec` declares.
+    values: Any
+
+
+class StreamingInstrument(SerialInstrument):
+    """A line-protocol instrument whose samples arrive as unsolicited stream lines (``STREAM ON``).
+
+    The base of every streaming driver: a subclass says how one ``!`` line reads
+    (:meth:`parse_stream_line`) and, if it needs more than ``STREAM ON``, which commands start and
+    stop its stream (:meth:`start_commands`, :meth:`stop_commands`); the class does the rest:
+
+    * **acquire**: anchors the device clock (:class:`DeviceClock`, once per acquisition, so after
+      every reconnect), sends the start commands, checks the link and caches the status every
+      :attr:`~mirrorlab.core.devices.Instrument.status_interval` s (a dead link raises, and the base
+      class reconnects), and sends the stop commands when acquisition ends, if the device is
+      still reachable;
+    * **publishing**: the protocol's reader thread parses each stream line and emits it at once,
+      stamped with the device's own time mapped to session time (no queue, no further thread hop,
+      so a controller sees the sample as soon as it arrives); lines before the clock is anchored
+      or after acquisition ended are dropped, an unreadable line is a ``bad_sample`` warning, and
+      every other ``!`` line goes to :meth:`SerialInstrument.on_unsolicited` (``!ERR`` reports).
+
+    Example (``!T <ms> <mK>`` lines of a thermometer, stream ``temperature`` in K)::
+
+        class Thermometer(StreamingInstrument):
+            ...
+            def parse_stream_line(self, line: str) -> StreamSample | None:
+                if not line.startswith("T "):
+                    return None
+                _, ms, mk = line.split()   # a ValueError is reported as a bad sample
+                return StreamSample("temperature", int(ms) / 1000.0, int(mk) / 1000.0)
+    """
+
+    def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
+                 timeout: float = 2.0, report: Reporter | None = None) -> None:
+        super().__init__(label, port, settings, timeout, report)
+        self._emit: Emit | None = None   # set while acquiring, with the clock anchored
+        self._clock: DeviceClock | None = None
+
+    @abstractmethod
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        """Read one ``!`` line (``!`` stripped): a :class:`StreamSample`, or ``None`` if it is no
+        stream line of this device. Raise :class:`ProtocolError` or :class:`ValueError` for a
+        stream line that cannot be read. Runs in the protocol's reader thread: keep it quick."""
+
+    def start_commands(self) -> tuple[str, ...]:
+        """Commands that start the stream, in order, for the current settings (default ``STREAM ON``)."""
+        return ("STREAM ON",)
+
+    def stop_commands(self) -> tuple[str, ...]:
+        """Commands that stop the stream when acquisition ends (default ``STREAM OFF``)."""
+        return ("STREAM OFF",)
+
+    def on_unsolicited(self, line: str) -> None:
+        try:
+            sample = self.parse_stream_line(line)
+        except (ProtocolError, ValueError) as exc:
+            self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line {line[:60]!r} ({exc})")
+            return
+        if sample is None:
+            super().on_unsolicited(line)
+            return
+        emit, clock = self._emit, self._clock
+        if emit is not None and clock is not None:   # else: a line from before the anchor or after the stop
+            emit(sample.stream, [clock.session_time(sample.device_s)], np.asarray(sample.values)[None])
+
+    def acquire(self, emit: Emit, stop: threading.Event) -> None:
+        clock = DeviceClock(getattr(emit, "now", time.monotonic))
+        clock.anchor(self)    # a replugged device restarts its clock: anchor on every start
+        self._clock, self._emit = clock, emit
+        try:
+            for command in self.start_commands():
+                self.query(command)
+            while not stop.wait(self.status_interval):
+                self.last_status = self.status()   # a dead link raises here: the base class reconnects
+        finally:
+            self._emit = None
+            if self.client is not None and self.client.alive:
+                try:
+                    for command in self.stop_commands():
+                        self.query(command)
+                except DeviceError:
+                    pass   # stopping anyway; the next start configures the device afresh

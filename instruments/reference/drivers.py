@@ -1,34 +1,29 @@
 """Drivers of the reference instruments (``ANGS`` angle source, ``ACTU`` actuator).
 
-Both stream one tagged line type; the reader thread publishes each sample as it arrives, stamped
-with the device's own clock mapped to session time, so a controller sees it without a further
-thread hop. Units at the API: seconds, radians, hertz.
+Both stream one tagged line type (:class:`~mirrorlab.core.devices.StreamingInstrument`: the reader
+thread publishes each sample as it arrives, stamped with the device's own clock mapped to session
+time, so a controller sees it without a further thread hop). Units at the API: seconds, radians,
+hertz.
 """
 
 from __future__ import annotations
 
 import math
-import threading
 from typing import Any, ClassVar
 
 import numpy as np
 from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
-from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
+from mirrorlab.core.devices import StreamingInstrument, StreamSample
 
 from .models import ActuatorModel, AngleSourceModel
 
 
-class _StreamingInstrument(SerialInstrument):
+class _StreamingInstrument(StreamingInstrument):
     """Streams ``!<tag> <µs> <µrad>`` lines as one scalar stream in rad."""
 
     tag: ClassVar[str]
     stream_name: ClassVar[str]
     stream_description: ClassVar[str]
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._emit: Emit | None = None
-        self._clock: DeviceClock | None = None
 
     def apply_settings(self, settings: dict[str, Any]) -> None:
         self.query(f"RATE {settings['rate']:g}")
@@ -36,35 +31,11 @@ class _StreamingInstrument(SerialInstrument):
     def streams(self) -> list[StreamSpec]:
         return [StreamSpec(self.stream_name, "f8", (), "rad", self.settings["rate"], self.stream_description)]
 
-    def on_unsolicited(self, line: str) -> None:
-        emit, clock = self._emit, self._clock
-        if not line.startswith(f"{self.tag} ") or emit is None or clock is None:
-            super().on_unsolicited(line)
-            return
-        try:
-            _, us, urad = line.split()
-            t, value = int(us) * 1e-6, int(urad) * 1e-6
-        except ValueError:
-            self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line {line!r}")
-            return
-        emit(self.stream_name, [clock.session_time(t)], [value])
-
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        # The device clock anchored to session time once per acquisition (a replug restarts it).
-        self._clock = DeviceClock(emit.now)
-        self._clock.anchor(self)
-        self._emit = emit
-        self.query("STREAM ON")
-        try:
-            while not stop.wait(self.status_interval):
-                self.last_status = self.status()  # a dead link raises here: the base class reconnects
-        finally:
-            self._emit = None
-            if self.client is not None and self.client.alive and not stop.is_set():
-                try:
-                    self.query("STREAM OFF")
-                except DeviceError:
-                    pass
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        if not line.startswith(f"{self.tag} "):
+            return None
+        _, us, urad = line.split()
+        return StreamSample(self.stream_name, int(us) * 1e-6, int(urad) * 1e-6)
 
     def read(self) -> dict[str, np.ndarray]:
         return {self.stream_name: np.array([self.query("POS?").field(0, "µrad", int) * 1e-6])}

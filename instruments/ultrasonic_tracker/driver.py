@@ -8,17 +8,14 @@ counts, lost, end stop, quiet)``. API units rad and s; the wire speaks degrees a
 from __future__ import annotations
 
 import math
-import threading
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import DeviceClock, Emit, SerialInstrument
+from mirrorlab.core.devices import StreamingInstrument, StreamSample
 
 from .model import KH_DEFAULT, UltrasonicTrackerModel
 
-SILENCE_S = 0.5                  # the link is checked (and the status cached) this often, s
 FLAGS = "LEQ"
 
 
@@ -47,7 +44,7 @@ def parse_cycle(line: str) -> tuple[float, np.ndarray]:
         raise ProtocolError(f"malformed search cycle {line[:60]!r}") from None
 
 
-class UltrasonicTracker(SerialInstrument):
+class UltrasonicTracker(StreamingInstrument):
     """12-element 40 kHz ultrasonic direction tracker on a two-axis servo platform (USDF)."""
 
     name = "ultrasonic_tracker"
@@ -67,12 +64,6 @@ class UltrasonicTracker(SerialInstrument):
         Parameter("track", bool, True, help="run the autonomous search (TRACK ON) while acquiring"),
     )
 
-    def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
-                 timeout: float = 2.0, report: Any = None) -> None:
-        super().__init__(label, port, settings, timeout, report)
-        self._emit: Emit | None = None           # set while acquiring
-        self._clock: DeviceClock | None = None
-
     def apply_settings(self, settings: dict[str, Any]) -> None:
         if settings["rand_min"] > settings["rand_max"]:
             from mirrorlab.core.errors import Problem, ValidationError
@@ -87,39 +78,17 @@ class UltrasonicTracker(SerialInstrument):
                            "per search cycle: theta1 rad, theta2 rad, mean echo pressure counts, "
                            "lost, end stop, quiet (0/1)")]
 
-    def on_unsolicited(self, line: str) -> None:
-        # Reader thread: each cycle is published as it arrives, without a further thread hop.
-        if line.startswith("TRK "):
-            emit, clock = self._emit, self._clock
-            if emit is None or clock is None:
-                return                          # a cycle finished after STREAM OFF
-            try:
-                t, row = parse_cycle(line)
-            except ProtocolError as exc:
-                self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line ({exc})")
-                return
-            emit("direction", [clock.session_time(t)], row[None])
-            return
-        super().on_unsolicited(line)
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        if not line.startswith("TRK "):
+            return None
+        t, row = parse_cycle(line)
+        return StreamSample("direction", t, row)
 
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        self._clock = DeviceClock(emit.now)
-        self._clock.anchor(self)                # the device clock restarts after a replug
-        self._emit = emit
-        self.query("STREAM ON")
-        if self.settings["track"]:
-            self.query("TRACK ON")
-        try:
-            while not stop.wait(SILENCE_S):
-                self.last_status = self.status()   # a dead link raises here: the base class reconnects
-        finally:
-            self._emit = None
-            if self.client is not None and self.client.alive:
-                try:
-                    self.query("TRACK OFF")
-                    self.query("STREAM OFF")
-                except (ProtocolError, DeviceReplyError):
-                    pass
+    def start_commands(self) -> tuple[str, ...]:
+        return ("STREAM ON", "TRACK ON") if self.settings["track"] else ("STREAM ON",)
+
+    def stop_commands(self) -> tuple[str, ...]:
+        return ("TRACK OFF", "STREAM OFF")
 
     def read(self) -> dict[str, np.ndarray]:
         """One identification and measurement at the present aim: ``{"direction": (1, 6)}``."""
