@@ -55,8 +55,8 @@ class LineSimulator:
     """
 
     kind = "GENERIC"
-    #: Seconds between the server's checks for due stream lines when no command arrives: a stream
-    #: line leaves at most this late (a fast stream wants a short tick).
+    #: Longest wait, s, between the server's looks at the model when no command arrives and
+    #: :meth:`next_due_ms` names nothing sooner (idle time still passes on the device clock).
     stream_tick = 0.01
     vendor = "mirrorlab"
     model = "SIM"
@@ -72,6 +72,7 @@ class LineSimulator:
         self.flags: set[str] = set()
         self.last_error = ("E00", "none")
         self.rng = random.Random(seed)
+        self._line_sink: Callable[[], None] | None = None
         self.reset()
 
     # -- state -----------------------------------------------------------------------------------
@@ -92,6 +93,25 @@ class LineSimulator:
     def stream_lines(self) -> list[str]:
         """Unsolicited ``!`` lines due now while streaming (subclasses override)."""
         return []
+
+    def next_due_ms(self) -> float | None:
+        """Device time (ms) at which the model next has a stream line or scheduled work due.
+
+        The server wakes then, so a sample leaves as soon as it is ready rather than at the next
+        :attr:`stream_tick`. ``None`` (the default): nothing scheduled, the server looks every tick.
+        """
+        return None
+
+    def send_due_lines(self) -> None:
+        """Send the stream lines due by now, before :meth:`advance` starts long work.
+
+        A device sends a finished sample before it begins its next cycle; a model whose
+        ``advance`` computes a whole cycle at once calls this first, so the computation does not
+        delay the line. Served, the lines leave at once; unserved (unit tests) they wait in
+        :meth:`stream_lines`.
+        """
+        if self._line_sink is not None:
+            self._line_sink()
 
     def raise_fault(self, code: str, text: str) -> str:
         """Record a fault arising outside a command; return the ``!ERR`` line to send."""
@@ -377,42 +397,62 @@ class SimulatorServer:
         return False
 
     def _serve_connection(self) -> None:
-        last_tick = time.monotonic()
+        # The device clock follows the wall clock (plus, in FAST mode, the skipped Delays of
+        # commands): ``synced`` is the monotonic time up to which the model has been advanced.
+        synced = time.monotonic()
+        self.model._line_sink = self._send_stream
         while not self._stop.is_set():
-            line = self._next_line(timeout=self.model.stream_tick)
+            line = self._next_line(timeout=self._wait(synced))
             if line is None:
                 self.endpoint.disconnect()
                 return
-            now = time.monotonic()
             with self.lock:
-                # Idle time passes in both clock modes; FAST only skips the Delays of commands.
-                self.model.advance(now - last_tick)
-                last_tick = now
+                now = time.monotonic()
+                if now > synced:  # a REAL Delay cut short by ABORT leaves the clock ahead for a moment
+                    self.model.advance(now - synced)
+                    synced = now
                 if self.endpoint.faults.stall:
                     continue
                 if line:
-                    self._run_command(line)
-                    last_tick = time.monotonic()
-                if self.model.streaming:
-                    for s in self.model.stream_lines():
-                        self._send(s)
+                    slept = self._run_command(line)
+                    synced += 0.0 if self.model.fast else slept  # REAL: the Delays passed on the wall clock too
+                self._send_stream()
 
-    def _run_command(self, line: str) -> None:
+    def _wait(self, synced: float) -> float:
+        """Seconds to wait for a command: until the model's next due line, at most one tick."""
+        tick = self.model.stream_tick
+        with self.lock:
+            due = None if self.endpoint.faults.stall else self.model.next_due_ms()
+            if due is None:
+                return tick
+            device_now = self.model.clock_ms + (time.monotonic() - synced) * 1000.0
+        return min(tick, max(0.0, (due - device_now) / 1000.0))
+
+    def _send_stream(self) -> None:
+        """Send the model's due stream lines (nothing while the device is stalled)."""
+        if self.model.streaming and not self.endpoint.faults.stall:
+            for s in self.model.stream_lines():
+                self._send(s)
+
+    def _run_command(self, line: str) -> float:
+        """Run one command; returns the simulated seconds its :class:`Delay` s advanced the clock."""
         model = self.model
+        delayed = 0.0
         if line.strip().upper() == "ABORT":
             self._send("OK")
-            return
+            return delayed
         try:
             for item in model.handle(line):
                 if isinstance(item, Delay):
                     model.advance(item.seconds)
+                    delayed += item.seconds
                     if not model.fast:
                         self._sleep_watching_abort(item.seconds)
                     if self._abort_requested():
                         model.last_error = ("E09", "aborted")
                         self._send("ERR E09 aborted")
                         self._send("OK")
-                        return
+                        return delayed
                 else:
                     self._send(item)
         except CommandError as exc:
@@ -422,6 +462,7 @@ class SimulatorServer:
             log.exception("simulator %s failed on %r", model.kind, line)
             model.last_error = ("E08", f"simulator fault {type(exc).__name__}")
             self._send(f"ERR E08 simulator fault {type(exc).__name__}: {exc}"[:200])
+        return delayed
 
     def _sleep_watching_abort(self, seconds: float) -> None:
         end = time.monotonic() + seconds

@@ -8,20 +8,16 @@ one row per scan: ``(m px, d px, threshold, runs)`` with NaN ``m``, ``d`` when t
 from __future__ import annotations
 
 import math
-import queue
-import threading
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
+from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import LineTrackerModel
 from .sensor import CENTRE_PX, FOCAL_MM, MAX_CLOCK_HZ, MIN_CLOCK_HZ, PITCH_MM, PIXELS
-
-SILENCE_S = 1.0                  # no scan for this long (slowest clock: 0.5 s): check the link
 
 
 def parse_mark(line: str, tag: str = "M") -> tuple[float, np.ndarray]:
@@ -60,7 +56,7 @@ def direction(m: float) -> float:
     return math.atan((m - CENTRE_PX) * PITCH_MM / FOCAL_MM)
 
 
-class LineTracker(SerialInstrument):
+class LineTracker(StreamingInstrument):
     """Cylindrical-lens 512-pixel line-sensor direction detector (OLDT)."""
 
     name = "line_tracker"
@@ -86,11 +82,6 @@ class LineTracker(SerialInstrument):
         """The simulator, in the session's shared ``world`` if it has one (else its own: the turntable of §3.4)."""
         return LineTrackerModel(shared_world(world), seed=seed)
 
-    def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
-                 timeout: float = 2.0, report: Any = None) -> None:
-        super().__init__(label, port, settings, timeout, report)
-        self._marks: queue.Queue[tuple[float, np.ndarray]] = queue.Queue(maxsize=100_000)
-
     def apply_settings(self, settings: dict[str, Any]) -> None:
         self.query(f"CLK {int(round(settings['clock_hz']))}")
         self.query(f"THR {settings['threshold']}")
@@ -104,36 +95,11 @@ class LineTracker(SerialInstrument):
         return [StreamSpec("mark", "f8", (4,), "", self.settings["clock_hz"] / PIXELS,
                            "per scan: position m px, size d px, threshold counts, runs (NaN m, d: no mark)")]
 
-    def on_unsolicited(self, line: str) -> None:
-        if line.startswith("M "):
-            try:
-                self._marks.put_nowait(parse_mark(line))
-            except (ProtocolError, queue.Full) as exc:
-                self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line ({exc})")
-            return
-        super().on_unsolicited(line)
-
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
-        while not self._marks.empty():
-            self._marks.get_nowait()
-        self.query("STREAM ON")
-        try:
-            while not stop.is_set():
-                try:
-                    rows = [self._marks.get(timeout=SILENCE_S)]
-                except queue.Empty:
-                    self.query("PING")
-                    continue
-                while not self._marks.empty():
-                    rows.append(self._marks.get_nowait())
-                emit("mark", np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
-        finally:
-            if self.client is not None and self.client.alive:
-                try:
-                    self.query("STREAM OFF")
-                except (ProtocolError, DeviceReplyError):
-                    pass
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        if not line.startswith("M "):
+            return None
+        t, row = parse_mark(line)
+        return StreamSample("mark", t, row)
 
     def read(self) -> dict[str, np.ndarray]:
         """The last scan's mark: ``{"mark": (1, 4)}`` (NaN ``m``, ``d`` without a mark)."""

@@ -97,6 +97,10 @@ class LineTrackerModel(LineSimulator):
         lines, self.pending = self.pending, []
         return lines
 
+    def next_due_ms(self) -> float | None:
+        """The next detector scan (device ms): its sample line leaves as soon as it is taken."""
+        return self.next_sample_ms
+
     def cmd_SIM_SEED(self, args: list[str]) -> Lines:
         yield from super().cmd_SIM_SEED(args)
         self.np_rng = np.random.default_rng(self.seed)

@@ -10,14 +10,12 @@ API units rad and s; the wire speaks degrees, ms, px and DAC counts.
 from __future__ import annotations
 
 import math
-import queue
-import threading
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
+from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
 from mirrorlab.instruments.line_tracker.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
@@ -25,7 +23,6 @@ from .model import MirrorGimbalModel
 
 AXES = ("h", "v")
 LIMIT_RAD = math.radians(35.0)
-SILENCE_S = 0.5                  # no sample for this long: check the link with PING
 
 
 def parse_sample(line: str) -> tuple[str, float, np.ndarray]:
@@ -54,7 +51,7 @@ def parse_sample(line: str) -> tuple[str, float, np.ndarray]:
         raise ProtocolError(f"malformed gimbal sample {line[:60]!r}") from None
 
 
-class MirrorGimbal(SerialInstrument):
+class MirrorGimbal(StreamingInstrument):
     """Two-axis 1 m active mirror with a line-sensor detector per axis (MGIM)."""
 
     name = "mirror_gimbal"
@@ -81,11 +78,6 @@ class MirrorGimbal(SerialInstrument):
                   help="detector sensor clock: exposure and loop period 512 / clock"),
         Parameter("threshold", int, 128, bounds=(0, 255), help="detector comparator threshold, counts"),
     )
-
-    def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
-                 timeout: float = 2.0, report: Any = None) -> None:
-        super().__init__(label, port, settings, timeout, report)
-        self._samples: queue.Queue[tuple[str, float, np.ndarray]] = queue.Queue(maxsize=100_000)
 
     @classmethod
     def make_simulator(cls, settings: Mapping[str, Any], seed: int,
@@ -127,42 +119,11 @@ class MirrorGimbal(SerialInstrument):
                            f"{axis.upper()} axis per detector sample: K px, E = K - 255 px, mirror angle rad "
                            "(NaN K, E: no mark)") for axis in AXES]
 
-    def on_unsolicited(self, line: str) -> None:
-        if line.startswith("G "):
-            try:
-                self._samples.put_nowait(parse_sample(line))
-            except (ProtocolError, queue.Full) as exc:
-                self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line ({exc})")
-            return
-        super().on_unsolicited(line)
-
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        # Device clock (ms since power-up) -> session time, anchored once per acquisition.
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
-        while not self._samples.empty():
-            self._samples.get_nowait()
-        self.query("STREAM ON")
-        try:
-            while not stop.is_set():
-                batch: dict[str, list[tuple[float, np.ndarray]]] = {a: [] for a in AXES}
-                try:
-                    axis, t, values = self._samples.get(timeout=SILENCE_S)
-                except queue.Empty:
-                    self.query("PING")   # silent device: raises DeviceTimeout/Disconnected -> reconnect
-                    continue
-                batch[axis].append((t, values))
-                while not self._samples.empty():
-                    axis, t, values = self._samples.get_nowait()
-                    batch[axis].append((t, values))
-                for axis, rows in batch.items():
-                    if rows:
-                        emit(axis, np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
-        finally:
-            if self.client is not None and self.client.alive:
-                try:
-                    self.query("STREAM OFF")
-                except (ProtocolError, DeviceReplyError):
-                    pass
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        if not line.startswith("G "):
+            return None
+        axis, t, row = parse_sample(line)
+        return StreamSample(axis, t, row)
 
     def read(self) -> dict[str, np.ndarray]:
         """The last detector sample and mirror angle of each axis: ``{"h": (1, 3), "v": (1, 3)}``."""

@@ -181,7 +181,7 @@ def integrate_axis(state: AxisState, voltage: float, params: AxisParams, duratio
             current = (voltage - p.k_t * p.ratio * s.gear_rate) / p.resistance
             if abs(current) < p.current_limit:
                 limited = False
-            current = float(np.clip(current, -p.current_limit, p.current_limit))
+            current = min(max(current, -p.current_limit), p.current_limit)  # not np.clip: a scalar, 1000 times a second
             s.gear_rate += h * (p.ratio * p.k_t * current - spring) / j_gear
             s.gear += h * s.gear_rate
         drive = spring - p.viscous * s.mirror_rate

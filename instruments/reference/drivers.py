@@ -1,35 +1,30 @@
 """Drivers of the reference instruments (``ANGS`` angle source, ``ACTU`` actuator, ``CHNS`` chain source).
 
-Each streams one tagged line type; the reader thread publishes each sample as it arrives, stamped
-with the device's own clock mapped to session time, so a controller sees it without a further
-thread hop. Units at the API: seconds, radians, hertz, millimetres.
+Each streams one tagged line type (:class:`~mirrorlab.core.devices.StreamingInstrument`: the reader
+thread publishes each sample as it arrives, stamped with the device's own clock mapped to session
+time, so a controller sees it without a further thread hop). Units at the API: seconds, radians,
+hertz, millimetres.
 """
 
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument
+from mirrorlab.core.devices import StreamingInstrument, StreamSample
 
 from .models import ActuatorModel, AngleSourceModel, ChainSourceModel
 
 
-class _StreamingInstrument(SerialInstrument):
+class _StreamingInstrument(StreamingInstrument):
     """Streams ``!<tag> <µs> <fields>`` lines (by default one scalar in µrad, published in rad)."""
 
     tag: ClassVar[str]
     stream_name: ClassVar[str]
     stream_description: ClassVar[str]
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._emit: Emit | None = None
-        self._offset = 0.0  # session time of device time 0, s
 
     def apply_settings(self, settings: dict[str, Any]) -> None:
         self.query(f"RATE {settings['rate']:g}")
@@ -37,41 +32,17 @@ class _StreamingInstrument(SerialInstrument):
     def streams(self) -> list[StreamSpec]:
         return [StreamSpec(self.stream_name, "f8", (), "rad", self.settings["rate"], self.stream_description)]
 
-    def on_unsolicited(self, line: str) -> None:
-        emit = self._emit
-        if not line.startswith(f"{self.tag} ") or emit is None:
-            super().on_unsolicited(line)
-            return
-        try:
-            _, us, *fields = line.split()
-            t = self._offset + int(us) * 1e-6
-            samples = self.parse_sample(fields)
-        except ValueError:
-            self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line {line!r}")
-            return
-        for stream, value in samples.items():
-            emit(stream, [t], [value])
+    def parse_stream_line(self, line: str) -> list[StreamSample] | None:
+        if not line.startswith(f"{self.tag} "):
+            return None
+        _, us, *fields = line.split()
+        t = int(us) * 1e-6
+        return [StreamSample(stream, t, value) for stream, value in self.parse_fields(fields).items()]
 
-    def parse_sample(self, fields: list[str]) -> dict[str, Any]:
+    def parse_fields(self, fields: list[str]) -> dict[str, Any]:
         """Stream name -> one sample's value from the fields after the time stamp (raises ValueError)."""
         (urad,) = fields
         return {self.stream_name: int(urad) * 1e-6}
-
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        # The device clock (ms since power-up) anchored to session time once per acquisition.
-        self._offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
-        self._emit = emit
-        self.query("STREAM ON")
-        try:
-            while not stop.wait(self.status_interval):
-                self.last_status = self.status()  # a dead link raises here: the base class reconnects
-        finally:
-            self._emit = None
-            if self.client is not None and self.client.alive and not stop.is_set():
-                try:
-                    self.query("STREAM OFF")
-                except DeviceError:
-                    pass
 
     def read(self) -> dict[str, np.ndarray]:
         return {self.stream_name: np.array([self.query("POS?").field(0, "µrad", int) * 1e-6])}
@@ -183,7 +154,7 @@ class ChainSource(_StreamingInstrument):
         super().apply_settings(settings)
         self.query("SEL " + " ".join(self.joint_names))
 
-    def parse_sample(self, fields: list[str]) -> dict[str, Any]:
+    def parse_fields(self, fields: list[str]) -> dict[str, Any]:
         n = len(self.joint_names)
         if len(fields) != 1 + 3 * n:
             raise ValueError(f"expected a frame number and {3 * n} coordinates, got {len(fields)} fields")

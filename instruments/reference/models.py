@@ -23,7 +23,6 @@ class _Streaming(LineSimulator, ABC):
     """A device that streams one tagged sample line at ``RATE`` Hz."""
 
     tag = "X"
-    stream_tick = 0.002  # 100 Hz and faster: lines leave within 2 ms of their time
 
     def reset(self) -> None:
         super().reset()
@@ -42,6 +41,10 @@ class _Streaming(LineSimulator, ABC):
     def cmd_STREAM(self, args: list[str]) -> Lines:
         yield from super().cmd_STREAM(args)
         self._next_ms = self.clock_ms  # a stream starts now, not with the samples missed while off
+
+    def next_due_ms(self) -> float | None:
+        """The next sample's device time while streaming: it leaves at that moment."""
+        return self._next_ms if self.streaming else None
 
     def stream_lines(self) -> list[str]:
         lines = []

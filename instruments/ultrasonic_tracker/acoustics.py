@@ -7,6 +7,7 @@ sound of the air temperature (1.8). Lengths mm, angles rad, times s, frequency H
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -65,6 +66,7 @@ def element_directivity(alpha: ArrayLike, k: float, radius: float = EFFECTIVE_RA
     return np.where(np.abs(x) < 1e-12, 1.0, np.abs(2.0 * j1(safe) / safe))
 
 
+@functools.cache   # the layout is asked for at every emission; read-only, so sharing it is safe
 def element_positions(pitch: float = PITCH) -> FloatArray:
     """The 12 elements in the array plane, ``(12, 2)`` mm: 6 at ``d`` (30, 90, ... deg), 6 at ``sqrt(3) d`` (0, 60, ...).
 
@@ -77,9 +79,12 @@ def element_positions(pitch: float = PITCH) -> FloatArray:
     inner = np.radians(30.0 + 60.0 * np.arange(6))
     outer = np.radians(60.0 * np.arange(6))
     rings = [(pitch, inner), (math.sqrt(3.0) * pitch, outer)]
-    return np.concatenate([r * np.stack([np.cos(a), np.sin(a)], axis=1) for r, a in rings])
+    positions = np.concatenate([r * np.stack([np.cos(a), np.sin(a)], axis=1) for r, a in rings])
+    positions.flags.writeable = False
+    return positions
 
 
+@functools.cache
 def steering_groups(azimuth: float = STEER_AZIMUTH, pitch: float = PITCH) -> NDArray[np.int64]:
     """Group index ``n_i = round(r_i . e / (sqrt(3)/2 d))`` in -2..2 of each element for steering axis ``e``.
 
@@ -89,7 +94,9 @@ def steering_groups(azimuth: float = STEER_AZIMUTH, pitch: float = PITCH) -> NDA
     [1, 4, 2, 4, 1]
     """
     e = np.array([math.cos(azimuth), math.sin(azimuth)])
-    return np.rint(element_positions(pitch) @ e / (math.sqrt(3.0) / 2.0 * pitch)).astype(np.int64)
+    groups = np.rint(element_positions(pitch) @ e / (math.sqrt(3.0) / 2.0 * pitch)).astype(np.int64)
+    groups.flags.writeable = False
+    return groups
 
 
 def array_directivity(alpha: ArrayLike, azimuth: ArrayLike, k: float, psi: float = 0.0,

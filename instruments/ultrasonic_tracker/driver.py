@@ -8,19 +8,16 @@ counts, lost, end stop, quiet)``. API units rad and s; the wire speaks degrees a
 from __future__ import annotations
 
 import math
-import queue
-import threading
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
-from mirrorlab.core.devices import Emit, SerialInstrument, SimulatedWorld
+from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import KH_DEFAULT, UltrasonicTrackerModel
 
-SILENCE_S = 0.5                  # no cycle for this long: check the link with PING
 FLAGS = "LEQ"
 
 
@@ -49,7 +46,7 @@ def parse_cycle(line: str) -> tuple[float, np.ndarray]:
         raise ProtocolError(f"malformed search cycle {line[:60]!r}") from None
 
 
-class UltrasonicTracker(SerialInstrument):
+class UltrasonicTracker(StreamingInstrument):
     """12-element 40 kHz ultrasonic direction tracker on a two-axis servo platform (USDF)."""
 
     name = "ultrasonic_tracker"
@@ -76,11 +73,6 @@ class UltrasonicTracker(SerialInstrument):
         """The simulator, in the session's shared ``world`` if it has one (else its own: the 130 mm sphere 1.3 m ahead)."""
         return UltrasonicTrackerModel(shared_world(world), seed=seed)
 
-    def __init__(self, label: str, port: str | None = None, settings: Mapping[str, Any] | None = None,
-                 timeout: float = 2.0, report: Any = None) -> None:
-        super().__init__(label, port, settings, timeout, report)
-        self._cycles: queue.Queue[tuple[float, np.ndarray]] = queue.Queue(maxsize=100_000)
-
     def apply_settings(self, settings: dict[str, Any]) -> None:
         if settings["rand_min"] > settings["rand_max"]:
             from mirrorlab.core.errors import Problem, ValidationError
@@ -95,39 +87,17 @@ class UltrasonicTracker(SerialInstrument):
                            "per search cycle: theta1 rad, theta2 rad, mean echo pressure counts, "
                            "lost, end stop, quiet (0/1)")]
 
-    def on_unsolicited(self, line: str) -> None:
-        if line.startswith("TRK "):
-            try:
-                self._cycles.put_nowait(parse_cycle(line))
-            except (ProtocolError, queue.Full) as exc:
-                self.report("warning", "bad_sample", f"{self.device_name}: unusable stream line ({exc})")
-            return
-        super().on_unsolicited(line)
+    def parse_stream_line(self, line: str) -> StreamSample | None:
+        if not line.startswith("TRK "):
+            return None
+        t, row = parse_cycle(line)
+        return StreamSample("direction", t, row)
 
-    def acquire(self, emit: Emit, stop: threading.Event) -> None:
-        offset = emit.now() - self.query("TIME?").field(0, "ms", float) / 1000.0
-        while not self._cycles.empty():
-            self._cycles.get_nowait()
-        self.query("STREAM ON")
-        if self.settings["track"]:
-            self.query("TRACK ON")
-        try:
-            while not stop.is_set():
-                try:
-                    rows = [self._cycles.get(timeout=SILENCE_S)]
-                except queue.Empty:
-                    self.query("PING")
-                    continue
-                while not self._cycles.empty():
-                    rows.append(self._cycles.get_nowait())
-                emit("direction", np.array([r[0] for r in rows]) + offset, np.array([r[1] for r in rows]))
-        finally:
-            if self.client is not None and self.client.alive:
-                try:
-                    self.query("TRACK OFF")
-                    self.query("STREAM OFF")
-                except (ProtocolError, DeviceReplyError):
-                    pass
+    def start_commands(self) -> tuple[str, ...]:
+        return ("STREAM ON", "TRACK ON") if self.settings["track"] else ("STREAM ON",)
+
+    def stop_commands(self) -> tuple[str, ...]:
+        return ("TRACK OFF", "STREAM OFF")
 
     def read(self) -> dict[str, np.ndarray]:
         """One identification and measurement at the present aim: ``{"direction": (1, 6)}``."""

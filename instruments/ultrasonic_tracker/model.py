@@ -155,6 +155,11 @@ class UltrasonicTrackerModel(LineSimulator):
         self.pending = [(t, line) for t, line in self.pending if t > now + 1e-9]
         return due
 
+    def next_due_ms(self) -> float | None:
+        """The next ``!TRK`` line or, while tracking, the next cycle's start (device ms)."""
+        times = [t for t, _ in self.pending] + ([self.next_cycle_s] if self.tracking else [])
+        return 1000.0 * min(times) if times else None
+
     def cmd_SIM_SEED(self, args: list[str]) -> Lines:
         yield from super().cmd_SIM_SEED(args)
         self.np_rng = np.random.default_rng(self.seed)
@@ -196,14 +201,18 @@ class UltrasonicTrackerModel(LineSimulator):
             return
         s = self.servo
         wn = 2 * math.pi * s.natural_hz
-        while self.physics_s < until_s:
-            h = min(1e-3, until_s - self.physics_s)
+        # Python floats in the 1 ms loop: numpy scalar calls here cost most of a cycle's CPU time
+        gains = [s.gains[i] * self._servo_gain(i) * wn**2 for i in range(2)]
+        setpoint, theta, rate = self.setpoint.tolist(), self.theta.tolist(), self.rate.tolist()
+        t = self.physics_s
+        while t < until_s:
+            h = min(1e-3, until_s - t)
             for i in range(2):
-                k = s.gains[i] * self._servo_gain(i) * wn**2
-                acc = k * (self.setpoint[i] - self.theta[i]) - 2 * s.damping * wn * self.rate[i]
-                self.rate[i] = float(np.clip(self.rate[i] + h * acc, -s.slew, s.slew))
-                self.theta[i] += h * self.rate[i]
-            self.physics_s += h
+                acc = gains[i] * (setpoint[i] - theta[i]) - 2 * s.damping * wn * rate[i]
+                rate[i] = min(max(rate[i] + h * acc, -s.slew), s.slew)
+                theta[i] += h * rate[i]
+            t += h
+        self.theta, self.rate, self.physics_s = np.array(theta), np.array(rate), t
 
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time): the platform moves, and in TRACK mode
@@ -211,6 +220,7 @@ class UltrasonicTrackerModel(LineSimulator):
         super().advance(self.scene.catch_up(seconds, self.clock_ms))
         now = self.clock_ms / 1000.0
         while self.tracking and self.next_cycle_s <= now:
+            self.send_due_lines()   # the previous cycle's line leaves before this one is computed
             self.next_cycle_s += self._cycle(self.next_cycle_s)
         self._integrate(now)
 
