@@ -48,12 +48,16 @@ class Step(ABC):
     tables: ClassVar[Mapping[str, str]] = {}
     #: The step records from instruments: not allowed in an analysis recipe on an existing session.
     records: ClassVar[bool] = False
+    #: Parameters whose value names instruments of the recipe (comma-separated labels; empty names
+    #: none), checked by :meth:`validate`.
+    instrument_keys: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         """Typed values of the step's table and every problem found (file, key path, reason)."""
-        return cls.parameters.problems(table, where, file)
+        values, problems = cls.parameters.problems(table, where, file)
+        return values, problems + instrument_problems(values, cls.instrument_keys, where, file, instruments)
 
     @abstractmethod
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
@@ -69,16 +73,7 @@ class Acquire(Step):
                   help="how long to record; 0 = until every recorded source has ended"),
         Parameter("instruments", str, "", help="comma-separated labels to record (default: all)"),
     )
-
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        for label in _labels(values.get("instruments", "")):
-            if label not in instruments:
-                problems.append(Problem(f"{where}.instruments", f"no instrument {label!r} in the recipe; "
-                                        f"it has: {', '.join(instruments) or 'none'}", file))
-        return values, problems
+    instrument_keys = ("instruments",)
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         session.record(values["seconds"], _labels(values["instruments"]) or None)
@@ -181,6 +176,19 @@ def _table(table: Mapping[str, Any], key: str, where: str, file: str | None, pro
 
 def _labels(text: str) -> list[str]:
     return [label.strip() for label in text.split(",") if label.strip()]
+
+
+def instrument_problems(values: Mapping[str, Any], keys: Collection[str], where: str, file: str | None,
+                        instruments: Mapping[str, Any]) -> list[Problem]:
+    """A problem for each label in ``values[key]`` (``key`` in ``keys``) that names no instrument of the recipe.
+
+    An analysis recipe declares no instruments (they are in the session file it runs on): nothing
+    is checked then; the step finds out when it runs.
+    """
+    if not instruments:
+        return []
+    return [Problem(f"{where}.{key}", f"no instrument {label!r} in the recipe; it has: {', '.join(instruments)}", file)
+            for key in keys for label in _labels(str(values.get(key) or "")) if label not in instruments]
 
 
 @hookimpl

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import Parameter, ParameterSet, Step
 from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 
@@ -19,7 +19,7 @@ from .experiments import fit_sinusoid, uncut
 from .sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Registry, Session
+    from mirrorlab.core import Session
 
 #: Fig. 4.35 and §3.4: amplitude (px, printed and as corrected in spec §6.11), sample period (s), samples per turn.
 THESIS = {"amplitude": 251.0, "sample_period": 0.0788, "samples": 23.4}
@@ -37,14 +37,7 @@ class TurntableReport(Step):
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if values.get("instrument") and values["instrument"] not in instruments:
-            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
-                                    f"it has: {', '.join(instruments) or 'none'}", file))
-        return values, problems
+    instrument_keys = ("instrument",)
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         marks = session.stream(values["instrument"], "mark")

@@ -13,14 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Problem, Step, schema
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, schema
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 from mirrorlab.instruments.virtual_lab.world import image_in_mirror, mirror_normal
 
 from .experiments import fixed_mirror_width, tracking_limit
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Registry, Session
+    from mirrorlab.core import Session
 
 #: The thesis's figures (§4.3): the tracking limit, deg/s; the fixed mirror a walk would need, m.
 THESIS = {"limit": 15.0, "fixed_mirror_m": 3.0}
@@ -67,15 +67,7 @@ class ActiveMirrorReport(Step):
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        for key in ("instrument", "fixed"):
-            if values.get(key) and values[key] not in instruments:
-                problems.append(Problem(f"{where}.{key}", f"no instrument {values[key]!r} in the recipe; "
-                                        f"it has: {', '.join(instruments) or 'none'}", file))
-        return values, problems
+    instrument_keys = ("instrument", "fixed")
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         root = latest_truth(session)

@@ -12,14 +12,14 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import Parameter, ParameterSet, Step
 from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 
 from .experiments import stage_tracking
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Registry, Session
+    from mirrorlab.core import Session
 
 #: §2.4, §2.6: search cycle (s, at 1.3 m), accuracy (deg), the stage's cycles (s).
 THESIS = {"cycle": 0.080, "accuracy": 5.0, "line_period": 50.0, "ellipse_period": 17.0}
@@ -43,14 +43,7 @@ class UltrasonicReport(Step):
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if values.get("instrument") and values["instrument"] not in instruments:
-            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
-                                    f"it has: {', '.join(instruments) or 'none'}", file))
-        return values, problems
+    instrument_keys = ("instrument",)
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         rec = session.stream(values["instrument"], "direction")

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step
 
 from .fourbar import LINK_NAMES
 from .swept import strip_area, swept_region
@@ -21,7 +21,7 @@ from .synthetic import TABLE_5_1
 from .walls import ARC_C, ARC_H, arc_wall, astroid_motion, centrodes, eq63_motion, wall_motion
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Registry, ResultData, Session
+    from mirrorlab.core import ResultData, Session
 
 __all__ = ["STEPS", "FourBarReport", "WallReport", "format_four_bar", "format_walls"]
 
@@ -77,14 +77,7 @@ class FourBarReport(Step):
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if not problems and values["instrument"] and values["instrument"] not in instruments:
-            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
-                                    f"it has: {', '.join(instruments) or 'none'}", file))
-        return values, problems
+    instrument_keys = ("instrument",)
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         from .figures import plot_four_bar

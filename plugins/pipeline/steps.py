@@ -5,10 +5,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import Parameter, ParameterSet, Step
 
 if TYPE_CHECKING:
-    from mirrorlab.core import Registry, Session
+    from mirrorlab.core import Session
 
 
 class Report(Step):
@@ -22,14 +22,7 @@ class Report(Step):
         Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures next to the file)"),
     )
 
-    @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if not problems and instruments and values["instrument"] not in instruments:
-            problems.append(Problem(f"{where}.instrument", f"no instrument {values['instrument']!r} in the recipe; "
-                                    f"it has: {', '.join(instruments)}", file))
-        return values, problems
+    instrument_keys = ("instrument",)
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         from .report import build_report, format_report, write_figures
