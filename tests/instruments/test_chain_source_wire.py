@@ -56,14 +56,18 @@ def test_driver_sends_the_documented_bytes_and_parses_the_stream() -> None:
     assert frames == [7, 8]
     np.testing.assert_array_equal(joints[0].values[0], [[0, 0, 0], [300, -250.5, 0.012]])
     np.testing.assert_array_equal(joints[1].values[0], [[1, np.nan, np.nan], [np.nan] * 3])
-    assert joints[1].times[0] - joints[0].times[0] == pytest.approx(0.008333, abs=1e-9)
+    # The script sends both lines at once: DeviceClock keeps each sample no later than its arrival,
+    # so the second is stamped at most the device's 8.333 ms after the first.
+    assert 0 < joints[1].times[0] - joints[0].times[0] <= 0.008333 + 1e-9
+    stamps = [[s.device_s for s in source.parse_stream_line(line[3:])] for line in DRIVER[-2:]]
+    assert stamps == [[1.5, 1.5], [1.508333, 1.508333]]  # joints and frame of each line, device seconds
 
 
 @pytest.mark.parametrize("fields", [["7", "1", "2"], ["x", "0", "0", "0", "0", "0", "0"], ["7", "a", "0", "0", "0", "0", "0"]])
 def test_malformed_stream_lines_are_refused(fields: list[str]) -> None:
     source = ChainSource("mocap", port="loop://", settings={"joints": "a,b"})
     with pytest.raises(ValueError):
-        source.parse_sample(fields)
+        source.parse_fields(fields)
 
 
 def test_unknown_joint_is_a_device_error_naming_the_joints() -> None:
