@@ -17,16 +17,21 @@ from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
 from textual.renderables.sparkline import Sparkline
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, RichLog, Static
+from textual.widgets import DataTable, Header, RichLog, Static
 
 from ..errors import MirrorlabError
 from ..events import Event
 from ..snapshot import InstrumentSnapshot, SessionSnapshot
 from .dialogs import ErrorDialog, FaultDialog, HelpScreen
 from .model import Console
+from .widgets import KeysFooter
 
 #: Dashboard refreshes per second.
 POLL_HZ = 10
+#: Redraws of the values, counters and sparklines per second (a poll is cheap, a redraw is not).
+VIEW_HZ = 2
+#: Samples a sparkline shows.
+TREND_SAMPLES = 60
 COLUMNS = ("source", "state", "value", "trend", "samples", "drops", "rec")
 STATE_STYLE = {"acquiring": "green", "running": "green", "reconnecting": "bold yellow", "failed": "bold red",
                "connecting": "yellow"}
@@ -78,6 +83,8 @@ class MirrorlabApp(App[int]):
         self._log_seen = 0
         self._faults: set[str] = set()  # instruments whose current fault has been shown
         self._recorder_error = ""
+        self._polls = 0
+        self._shown: dict[object, object] = {}  # what each Static / table cell shows now
         self.sub_title = model.session.path.name
 
     # -- layout ----------------------------------------------------------------------------------
@@ -88,7 +95,7 @@ class MirrorlabApp(App[int]):
         yield table
         yield Static(id="identity", markup=False)
         yield RichLog(id="log", max_lines=200, wrap=False, markup=False)
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         table = self.query_one("#sources", DataTable)
@@ -113,17 +120,31 @@ class MirrorlabApp(App[int]):
 
     # -- refreshing ------------------------------------------------------------------------------
     def refresh_view(self) -> None:
-        """Poll the console and update every widget (the timer calls this at ``poll_hz``)."""
+        """Poll the console and update what changed (the timer calls this at ``poll_hz``).
+
+        Faults are checked on every poll; values, counters and sparklines are redrawn at
+        :data:`VIEW_HZ`, and only the cells and lines whose text changed, without a layout pass:
+        redrawing the whole screen ten times a second kept the event loop from answering keys."""
         if self._quitting:
             return
         snap = self.model.poll() if self.model.live else None
         self.snapshot = snap
-        self.query_one("#info", Static).update(self._info_text(snap))
+        self._polls += 1
+        if snap is not None:
+            self._check_faults(snap)
+        if self._polls % max(1, round(self.poll_hz / VIEW_HZ)) != 1 and self._polls > 1:
+            return
+        self._show("#info", self._info_text(snap))
         if snap is not None:
             self._update_table(snap)
-            self._check_faults(snap)
         self._update_identity()
         self._update_log()
+
+    def _show(self, selector: str, text: Text | str) -> None:
+        """Update a fixed-size Static only if its text changed (no layout: its size does not change)."""
+        if self._shown.get(selector) != text:
+            self._shown[selector] = text
+            self.query_one(selector, Static).update(text, layout=False)
 
     def _info_text(self, snap: SessionSnapshot | None) -> Text:
         session = self.model.session
@@ -149,15 +170,21 @@ class MirrorlabApp(App[int]):
             ctrl = snap.controllers.get(source)
             state = inst.state if inst is not None else ctrl.state if ctrl is not None else "?"
             live = next(iter(self.model.source_streams(source)), None)
-            value = live.describe_latest() if live is not None else "–"
-            trend = Sparkline(list(live.values)[-60:], width=12) if live is not None and len(live.values) > 1 else ""
             if inst is not None:
                 counts = (str(inst.samples), str(inst.dropped), str(inst.reconnects))
             else:
                 counts = (str(ctrl.commands), str(ctrl.failed_commands), "") if ctrl is not None else ("", "", "")
-            cells = (Text(state, style=STATE_STYLE.get(state, "")), value, trend, *counts)
-            for column, cell in zip(COLUMNS[1:], cells):
-                table.update_cell(source, column, cell)
+            recent = tuple(live.values)[-TREND_SAMPLES:] if live is not None else ()
+            cells = dict(zip(COLUMNS[1:], (Text(state, style=STATE_STYLE.get(state, "")),
+                                           live.describe_latest() if live else "–",
+                                           recent if len(recent) > 1 else (), *counts)))
+            for column, value in cells.items():
+                if self._shown.get((source, column)) == value:
+                    continue
+                self._shown[(source, column)] = value
+                if column == "trend":
+                    value = Sparkline(list(value), width=12) if value else ""
+                table.update_cell(source, column, value)
 
     def _update_identity(self) -> None:
         table = self.query_one("#sources", DataTable)
@@ -168,13 +195,14 @@ class MirrorlabApp(App[int]):
             if ctrl is not None and ctrl.latency is not None:
                 line += f" · latency p99 {1000 * ctrl.latency.p99:.1f} ms"
         if table.row_count:
-            self.query_one("#identity", Static).update(line)
+            self._show("#identity", line)
 
     def _update_log(self) -> None:
         events, self._log_seen = self.model.events_since(self._log_seen)
-        log = self.query_one("#log", RichLog)
-        for event in events:
-            log.write(log_line(event))
+        if events:
+            log = self.query_one("#log", RichLog)
+            for event in events:
+                log.write(log_line(event))
 
     def _check_faults(self, snap: SessionSnapshot) -> None:
         """Open the fault dialog once per drop-out; the recorder's error once per recording."""
@@ -253,6 +281,9 @@ class MirrorlabApp(App[int]):
         from .detail import SourceScreen
 
         self.push_screen(SourceScreen(source))
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        self._update_identity()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         if event.row_key.value is not None:

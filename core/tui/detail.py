@@ -8,10 +8,11 @@ from typing import TYPE_CHECKING, Any
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Input, Static
+from textual.widgets import Header, Input, Static
 from textual_plotext import PlotextPlot
 
 from .forms import ParameterForm
+from .widgets import KeysFooter
 
 if TYPE_CHECKING:
     from .app import MirrorlabApp
@@ -71,7 +72,7 @@ class SourceScreen(Screen[None]):
         for live_stream in model.source_streams(self.source):
             if live_stream.scalar:
                 yield StreamPlot(self.source, live_stream.spec.name)
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         self.sub_title = self.source

@@ -9,7 +9,9 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.widgets import DataTable, Header, ProgressBar, Static
+
+from .widgets import KeysFooter
 
 if TYPE_CHECKING:
     from .app import MirrorlabApp
@@ -38,7 +40,7 @@ class StepsScreen(Screen[None]):
         yield Static(id="status", markup=False)
         yield ProgressBar(id="progress", show_eta=False)
         yield DataTable(id="steps", cursor_type="row")
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "recipe steps"
