@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from functools import partial
+from importlib import import_module
 
 from rich.text import Text
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
 from textual.renderables.sparkline import Sparkline
 from textual.screen import Screen
+from textual.widget import Widget
 from textual.widgets import DataTable, Header, RichLog, Static
 
 from ..errors import MirrorlabError
@@ -44,6 +47,36 @@ ADVICE = {
 }
 
 
+@dataclass(frozen=True)
+class ScreenEntry:
+    """A screen the dashboard opens: its key, its command-palette title and help, and where its
+    class lives (``module:Class`` relative to this package, imported on first use). A screen class
+    may define ``unavailable(model) -> str``: why it cannot open now (``""``: it can)."""
+
+    key: str
+    title: str
+    help: str
+    target: str
+
+    def load(self) -> type[Screen]:
+        module, _, name = self.target.partition(":")
+        return getattr(import_module(module, __package__), name)
+
+
+#: Every screen the dashboard opens, by key and from the command palette (add new screens here).
+SCREENS: list[ScreenEntry] = [
+    ScreenEntry("t", "Steps", "the recipe's steps: run from one, see progress, cancel", ".steps:StepsScreen"),
+    ScreenEntry("a", "Analysis", "run an algorithm on the session's data, with progress and cancel",
+                ".analysis:AnalysisScreen"),
+    ScreenEntry("b", "Browse", "the session file: tree, dataset previews, attributes, provenance",
+                ".browser:BrowserScreen"),
+    ScreenEntry("g", "Plots", "trajectories, velocities, joint angles, tracker angles", ".plots:PlotsScreen"),
+    ScreenEntry("c", "Camera", "the latest frame with detected markers and mirror pairs", ".camera:CameraScreen"),
+]
+#: The two built-in themes the ``d`` key switches between.
+THEMES = ("textual-dark", "textual-light")
+
+
 def human_bytes(n: int) -> str:
     """``1536`` → ``1.5 kB`` (powers of 1000, as disk tools print)."""
     value = float(n)
@@ -69,7 +102,8 @@ class MirrorlabApp(App[int]):
         Binding("p", "preview", "Preview"),
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
-        Binding("t", "steps", "Steps"),
+        *(Binding(e.key, f"open_screen({e.title!r})", e.title) for e in SCREENS),
+        Binding("d", "toggle_theme", "Light/dark", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
@@ -151,7 +185,10 @@ class MirrorlabApp(App[int]):
         description = session.attrs.get("description", "") or "(no description)"
         text = Text(f"{description}\n", overflow="ellipsis", no_wrap=True)
         if snap is None:
-            text.append(f"session file, status {session.status}: browsing (read-only)", style="bold")
+            if self.model.read_only_reason:
+                text.append(f"session file, status {session.status}: browsing (read-only)", style="bold")
+            else:
+                text.append(f"session file, status {session.status}: a analysis, b browse, g plots", style="bold")
             return text
         if snap.recording:
             text.append(f"● RECORDING {snap.recording_seconds:5.1f} s", style="bold red")
@@ -232,8 +269,12 @@ class MirrorlabApp(App[int]):
     def show_error(self, title: str, message: str, advice: str = "") -> None:
         self.push_screen(ErrorDialog(title, message, advice))
 
-    def in_worker(self, what: str, fn: Callable[[], object], done: Callable[[object], None] | None = None) -> None:
-        """Run ``fn`` in a worker thread; an error becomes a dialog naming ``what`` failed."""
+    def in_worker(self, what: str, fn: Callable[[], object], done: Callable[[object], None] | None = None,
+                  owner: Widget | None = None) -> None:
+        """Run ``fn`` in a worker thread; an error becomes a dialog naming ``what`` failed.
+
+        ``done(result)`` runs on the event loop after success, unless ``owner`` (the screen that
+        asked) has been closed meanwhile."""
         def work() -> None:
             try:
                 result = fn()
@@ -244,8 +285,13 @@ class MirrorlabApp(App[int]):
                                       ADVICE.get(what, ""))
             else:
                 if done is not None:
-                    self.call_from_thread(done, result)
+                    self.call_from_thread(self._done, done, result, owner)
         self.run_worker(work, thread=True, group="actions", name=what)
+
+    @staticmethod
+    def _done(done: Callable[[object], None], result: object, owner: Widget | None) -> None:
+        if owner is None or owner.is_attached:
+            done(result)
 
     def _require_live(self) -> bool:
         if not self.model.live:
@@ -254,7 +300,7 @@ class MirrorlabApp(App[int]):
         return self.model.live
 
     def action_help(self) -> None:
-        self.push_screen(HelpScreen())
+        self.push_screen(HelpScreen([(e.key, e.help) for e in SCREENS]))
 
     def action_preview(self) -> None:
         if self._require_live():
@@ -269,13 +315,30 @@ class MirrorlabApp(App[int]):
         if self._require_live():
             self.in_worker("stop", self.model.stop)
 
-    def action_steps(self) -> None:
-        if self.model.recipe is None:
-            self.notify("A session file has no recipe steps; open a recipe to run them.", severity="warning")
-            return
-        from .steps import StepsScreen
+    def action_open_screen(self, title: str) -> None:
+        """Open one of :data:`SCREENS` (by title), or say why it cannot open now."""
+        cls = next(e for e in SCREENS if e.title == title).load()
+        unavailable = getattr(cls, "unavailable", None)
+        reason = unavailable(self.model) if unavailable is not None else ""
+        if reason:
+            self.notify(reason, severity="warning")
+        else:
+            self.push_screen(cls())
 
-        self.push_screen(StepsScreen())
+    def action_connect(self, source: str) -> None:
+        if self._require_live():
+            self.in_worker(f"connect {source}", partial(self.model.connect, source),
+                           lambda _: self.notify(f"{source} connected; p starts it acquiring"))
+
+    def action_disconnect(self, source: str) -> None:
+        if self._require_live():
+            self.in_worker(f"disconnect {source}", partial(self.model.disconnect, source),
+                           lambda _: self.notify(f"{source} disconnected; ctrl+o in its detail connects it again"))
+
+    def action_toggle_theme(self) -> None:
+        """Switch between the light and the dark theme."""
+        self.theme = THEMES[1] if self.theme == THEMES[0] else THEMES[0]
+        self.notify(f"theme {self.theme}")
 
     def action_open_source(self, source: str) -> None:
         from .detail import SourceScreen
@@ -306,7 +369,14 @@ class MirrorlabApp(App[int]):
         yield SystemCommand("Preview", "acquire without recording (p)", self.action_preview)
         yield SystemCommand("Record", "start or stop recording every instrument (r)", self.action_record)
         yield SystemCommand("Stop", "stop acquiring; a recording is written to the end (s)", self.action_stop)
-        yield SystemCommand("Steps", "the recipe's steps: run from one, see progress, cancel (t)", self.action_steps)
+        for source in self.model.session.instruments if self.model.live else ():
+            yield SystemCommand(f"Connect {source}", f"connect {source} again (ctrl+o in its detail)",
+                                partial(self.action_connect, source))
+            yield SystemCommand(f"Disconnect {source}", f"stop {source} and release its device (ctrl+o in its detail)",
+                                partial(self.action_disconnect, source))
+        for e in SCREENS:
+            yield SystemCommand(e.title, f"{e.help} ({e.key})", partial(self.action_open_screen, e.title))
+        yield SystemCommand("Light / dark", "switch between the light and the dark theme (d)", self.action_toggle_theme)
         for source in self.model.sources:
             yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",
                                 partial(self.action_open_source, source))

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ..algorithms import ResultRef
+from ..errors import SessionError
 from ..events import Event
 from ..recipes import Recipe, StepPlan, add_devices, load_recipe, recipe_record, run_steps
 from ..session import Session
@@ -98,6 +100,12 @@ class Console:
         #: The recipe step running now (``None``: none), and the newest progress event.
         self.current_step: StepPlan | None = None
         self.progress: Event | None = None
+        #: The algorithm running now (``None``: none).
+        self.running: str | None = None
+        #: Instruments the operator disconnected (:meth:`disconnect`).
+        self.disconnected: set[str] = set()
+        #: Why the file is open read-only (``""``: it is writable, or a live session).
+        self.read_only_reason = ""
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
@@ -122,8 +130,16 @@ class Console:
 
     @classmethod
     def from_file(cls, path: str | Path) -> Console:
-        """An existing session file, read-only, for browsing."""
-        return cls(Session.open(path))
+        """An existing session file, for browsing and analysis (writable, so that algorithms can
+        store their results; read-only if a crashed recording left it open)."""
+        try:
+            return cls(Session.open(path, writable=True))
+        except SessionError as exc:
+            if "session close" not in str(exc):  # not the crashed-file case: nothing to browse
+                raise
+            console = cls(Session.open(path))
+            console.read_only_reason = str(exc)
+            return console
 
     def _watch(self, source: str, specs: list[StreamSpec]) -> None:
         for spec in specs:
@@ -180,17 +196,45 @@ class Console:
         return " · ".join(p for p in parts if p)
 
     # -- acting (these wait on devices or the disk: call them from a worker thread) ----------------
+    @property
+    def connected(self) -> list[str]:
+        """The instruments not disconnected by the operator (those that preview and record)."""
+        return [label for label in self.session.instruments if label not in self.disconnected]
+
     def preview(self) -> None:
-        """Start every instrument acquiring (and the controllers), without recording."""
-        self.session.start_acquisition()
+        """Start every connected instrument acquiring (and the controllers), without recording."""
+        self.session.start_acquisition(self.connected)
 
     def toggle_recording(self) -> bool:
-        """Start recording every instrument, or stop the running recording; return whether recording now."""
+        """Start recording every connected instrument, or stop the running recording; return whether recording now."""
         if self.session.recording:
             self.session.stop_recording()
             return False
-        self.session.start_recording()
+        self.session.start_recording(self.connected)
         return True
+
+    def disconnect(self, source: str) -> None:
+        """Stop one instrument (and the controllers bound to it) and release its device; the others go on."""
+        inst = self.session.instruments[source]
+        if self.session.recording and self.session.snapshot().instruments[source].recorded:
+            raise SessionError(f"{source} is being recorded; stop the recording (r) before disconnecting it")
+        self.session.stop_acquisition([source])
+        inst.close()
+        self.disconnected.add(source)
+        inst.set_state("stopped", f"{inst.device_name} disconnected by the operator")
+
+    def connect(self, source: str) -> None:
+        """Connect a disconnected instrument again: open, identify, apply its settings."""
+        inst = self.session.instruments[source]
+        inst.set_state("connecting")
+        try:
+            inst.reconnect()
+        except BaseException:
+            inst.close()
+            inst.set_state("stopped", f"{inst.device_name} did not connect")
+            raise
+        self.disconnected.discard(source)
+        inst.set_state("idle", f"{inst.device_name} connected")
 
     def stop(self) -> None:
         """Stop acquiring (and the recording, written to the end)."""
@@ -214,6 +258,17 @@ class Console:
     def cancel(self) -> None:
         """Ask the running step (or recording, or algorithm) to end cleanly; no later step runs."""
         self.session.request_stop()
+
+    def run_algorithm(self, name: str, inputs: dict[str, str], parameters: dict[str, Any]) -> ResultRef:
+        """Run a registered algorithm on datasets of the session and store its result
+        (:meth:`Session.run`); :meth:`cancel` stops it at its next progress report."""
+        if self.session.recording:
+            raise SessionError(f"{self.session.path} is recording; stop the recording (r) before running {name}")
+        self.progress, self.running = None, name
+        try:
+            return self.session.run(name, inputs, parameters)
+        finally:
+            self.running = None
 
     def set_parameter(self, source: str, name: str, value: Any) -> Any:
         """Send one live parameter as a set-point; returns the value applied (in its unit)."""

@@ -15,6 +15,7 @@ from .widgets import KeysFooter
 
 if TYPE_CHECKING:
     from .app import MirrorlabApp
+    from .model import Console
 
 
 def step_summary(values: dict) -> str:
@@ -34,6 +35,10 @@ class StepsScreen(Screen[None]):
     """
 
     app: MirrorlabApp
+
+    @staticmethod
+    def unavailable(model: Console) -> str:
+        return "" if model.recipe is not None else "A session file has no recipe steps; open a recipe to run them."
 
     def compose(self) -> ComposeResult:
         yield Header()
