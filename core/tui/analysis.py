@@ -185,7 +185,7 @@ class AnalysisScreen(Screen[None]):
         model, bar = self.app.model, self.query_one("#progress", ProgressBar)
         if model.running is None:
             text = "enter: choose · ctrl+r: run · x: cancel · esc: back"
-            bar.update(total=None, progress=0)
+            bar.update(total=1, progress=0)  # still, until a run reports
         else:
             text = f"running {model.running} (x cancels)"
             progress = model.progress

@@ -66,12 +66,12 @@ class ScreenEntry:
 #: Every screen the dashboard opens, by key and from the command palette (add new screens here).
 SCREENS: list[ScreenEntry] = [
     ScreenEntry("t", "Steps", "the recipe's steps: run from one, see progress, cancel", ".steps:StepsScreen"),
-    ScreenEntry("a", "Analysis", "run an algorithm on the session's data, with progress and cancel",
+    ScreenEntry("a", "Analysis", "run an algorithm: its form, progress, cancel, result",
                 ".analysis:AnalysisScreen"),
-    ScreenEntry("b", "Browse", "the session file: tree, dataset previews, attributes, provenance",
+    ScreenEntry("b", "Browse", "the session file: tree, previews, attributes, provenance",
                 ".browser:BrowserScreen"),
     ScreenEntry("g", "Plots", "trajectories, velocities, joint angles, tracker angles", ".plots:PlotsScreen"),
-    ScreenEntry("c", "Camera", "the latest frame with detected markers and mirror pairs", ".camera:CameraScreen"),
+    ScreenEntry("c", "Camera", "the newest frame, detected markers, mirror pairs", ".camera:CameraScreen"),
 ]
 #: The two built-in themes the ``d`` key switches between.
 THEMES = ("textual-dark", "textual-light")
@@ -103,7 +103,7 @@ class MirrorlabApp(App[int]):
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
         *(Binding(e.key, f"open_screen({e.title!r})", e.title) for e in SCREENS),
-        Binding("d", "toggle_theme", "Light/dark", show=False),
+        Binding("d", "toggle_theme", "Light / dark", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
