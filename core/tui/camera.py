@@ -70,13 +70,16 @@ def stored_pairs(file: h5py.File, frames: int) -> tuple[np.ndarray, np.ndarray] 
 
 def compose_image(frame: np.ndarray, markers: np.ndarray, pairs: tuple[np.ndarray, np.ndarray] | None,
                   size: tuple[int, int]) -> Image.Image:
-    """The frame scaled to ``size`` (width, height) px, grey, with markers and pair lines drawn."""
+    """The frame scaled to fit ``size`` (width, height) px with its aspect ratio (a half-block cell
+    is two square pixels), grey, with markers and pair lines drawn."""
     grey = np.asarray(frame, dtype=float)
     lo, hi = float(np.nanmin(grey)), float(np.nanmax(grey))
     scaled = np.zeros_like(grey) if hi <= lo else (grey - lo) * (255.0 / (hi - lo))
     image = Image.fromarray(np.nan_to_num(scaled).astype(np.uint8)).convert("RGB")
+    scale = min(size[0] / frame.shape[1], size[1] / frame.shape[0])
+    size = (max(1, round(frame.shape[1] * scale)), max(1, round(frame.shape[0] * scale)))
     sx, sy = size[0] / frame.shape[1], size[1] / frame.shape[0]
-    image = image.resize(size, Image.Resampling.BILINEAR)
+    image = image.resize(size, Image.Resampling.BOX)  # area average: a small bright disc stays visible
     draw = ImageDraw.Draw(image)
     if pairs is not None:
         real, paired = pairs
@@ -84,8 +87,10 @@ def compose_image(frame: np.ndarray, markers: np.ndarray, pairs: tuple[np.ndarra
             for q in p:
                 if np.isfinite(r).all() and np.isfinite(q).all():
                     draw.line([(r[0] * sx, r[1] * sy), (q[0] * sx, q[1] * sy)], fill=PAIR)
-    for x, y in markers:
-        draw.point((x * sx, y * sy), fill=MARKER)
+    for x, y in markers:  # a cross 3 px wide: one terminal cell is only 1 x 2 of these pixels
+        cx, cy = x * sx, y * sy
+        draw.line([(cx - 1, cy), (cx + 1, cy)], fill=MARKER)
+        draw.line([(cx, cy - 1), (cx, cy + 1)], fill=MARKER)
     return image
 
 

@@ -278,3 +278,23 @@ async def test_ctrl_q_stops_and_closes_the_session_file(tmp_path: Path) -> None:
     assert console.closed and app.return_code == 0
     with Session.open(tmp_path / "quit.h5") as s:
         assert s.status == "closed"
+
+
+async def test_camera_follows_the_live_frames_of_a_preview(tmp_path: Path) -> None:
+    session = Session.create(tmp_path / "live.h5")
+    session.add_instrument("cam", "film_scanner", settings={"source": "virtual", "scene": "rssr",
+                                                            "scene_frames": 100_000, "frame_rate": "10 Hz"})
+    console = Console(session)
+    app = MirrorlabApp(console)
+    try:
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("c")
+            status = app.screen.query_one("#status", Static)
+            await until(pilot, lambda: "no frame yet; press p" in str(status.render()), "the hint")
+            await pilot.press("p")
+            await until(pilot, lambda: "markers (detect_markers)" in str(status.render()), "a live frame", polls=600)
+            first = str(status.render()).split(" at ")[1].split(" s")[0]
+            await until(pilot, lambda: str(status.render()).split(" at ")[1].split(" s")[0] != first, "the next frame")
+            await app.run_action("quit")
+    finally:
+        console.close()
