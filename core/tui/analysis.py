@@ -165,6 +165,7 @@ class AnalysisScreen(Screen[None]):
             return
         name = self.algorithm.name
         self.query_one("#result", Static).update(f"running {name}…")
+        self.query_one("#algorithms", OptionList).focus()  # out of the form: x now cancels, not types
         self.app.in_worker(f"run {name}", lambda: self._run(name, *values), self._show_result, owner=self)
 
     def _run(self, name: str, inputs: dict[str, str], params: dict[str, Any]) -> tuple[ResultRef, str]:

@@ -118,6 +118,8 @@ class MirrorlabApp(App[int]):
         self._faults: set[str] = set()  # instruments whose current fault has been shown
         self._recorder_error = ""
         self._polls = 0
+        # the description and status of the file (a recipe's description is known without reading it)
+        self._file_info = (model.recipe.description if model.recipe is not None else "(reading the session file…)", "")
         self._shown: dict[object, object] = {}  # what each Static / table cell shows now
         self.sub_title = model.session.path.name
 
@@ -137,14 +139,18 @@ class MirrorlabApp(App[int]):
             table.add_column(name, width=width, key=name)
         for source in self.model.sources:
             table.add_row(source, *[""] * (len(COLUMNS) - 1), key=source)
-        if not self.model.live:
-            self._show_file_summary()
+        self.in_worker("read the session file", self.model.session.describe, self._show_file_summary)
         self.refresh_view()
         self.set_interval(1 / self.poll_hz, self.refresh_view)
 
-    def _show_file_summary(self) -> None:
-        """A session file opened for browsing: its recorded streams and results in the log pane."""
-        info = self.model.session.describe()
+    def _show_file_summary(self, info: object) -> None:
+        """The file's description and status for the header; for a session file opened for
+        browsing, its recorded streams and results in the log pane."""
+        assert isinstance(info, dict)
+        self._file_info = (str(info["attributes"].get("description", "")), str(info["attributes"].get("status", "")))
+        self._show("#info", self._info_text(self.snapshot))
+        if self.model.live:
+            return
         log = self.query_one("#log", RichLog)
         for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
             for name, st in inst["streams"].items():
@@ -181,14 +187,13 @@ class MirrorlabApp(App[int]):
             self.query_one(selector, Static).update(text, layout=False)
 
     def _info_text(self, snap: SessionSnapshot | None) -> Text:
-        session = self.model.session
-        description = session.attrs.get("description", "") or "(no description)"
-        text = Text(f"{description}\n", overflow="ellipsis", no_wrap=True)
+        description, status = self._file_info  # read once, in a worker: the loop never waits on the file
+        text = Text(f"{description or '(no description)'}\n", overflow="ellipsis", no_wrap=True)
         if snap is None:
             if self.model.read_only_reason:
-                text.append(f"session file, status {session.status}: browsing (read-only)", style="bold")
+                text.append(f"session file, status {status}: browsing (read-only)", style="bold")
             else:
-                text.append(f"session file, status {session.status}: a analysis, b browse, g plots", style="bold")
+                text.append(f"session file, status {status}: a analysis, b browse, g plots", style="bold")
             return text
         if snap.recording:
             text.append(f"● RECORDING {snap.recording_seconds:5.1f} s", style="bold red")

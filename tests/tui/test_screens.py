@@ -170,10 +170,10 @@ async def test_analysis_run_cancelled_with_x_is_stored_as_cancelled(tmp_path: Pa
             await pilot.press("enter")
             await until(pilot, lambda: bool(screen.query("#input-values")), "the form is built")
             screen.query_one("#input-values", Select).value = "/data/values"
+            screen.query_one("#input-values", Select).focus()
             await pilot.press("ctrl+r")
             status = screen.query_one("#status", Static)
             await until(pilot, lambda: "waiting" in str(status.render()), "the progress shows")
-            screen.query_one("#algorithms").focus()
             await pilot.press("x")
             result = screen.query_one("#result", Static)
             await until(pilot, lambda: "cancelled" in str(result.render()), "the run is cancelled")
