@@ -17,15 +17,22 @@ from textual.binding import Binding
 from textual.containers import Horizontal, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Header, Input, OptionList, ProgressBar, Select, Static
+from textual.widgets.option_list import Option
 
 from ..algorithms import Algorithm, Port, ResultRef
 from . import browse
 from .forms import ParameterForm, shown
+from .steps import step_summary
 from .widgets import KeysFooter
 
 if TYPE_CHECKING:
+    from ..recipes import Recipe
     from ..session import ResultData
     from .app import MirrorlabApp
+
+
+#: Option ids of analysis recipes in the list start with this (algorithm names cannot contain it).
+RECIPE = "recipe:"
 
 
 def guess_input(port: Port, paths: list[str]) -> str | None:
@@ -49,7 +56,8 @@ def result_text(result: ResultData) -> str:
 
 
 class AnalysisScreen(Screen[None]):
-    """``a`` on the dashboard: enter picks an algorithm, ctrl+r runs it, x cancels, esc goes back."""
+    """``a`` on the dashboard: enter picks an algorithm (or, at the end of the list, a bundled analysis
+    recipe), ctrl+r runs it, x cancels, esc goes back."""
 
     BINDINGS = [Binding("ctrl+r", "run", "Run"), Binding("x", "cancel", "Cancel"), Binding("escape", "back", "Back")]
     DEFAULT_CSS = """
@@ -66,7 +74,9 @@ class AnalysisScreen(Screen[None]):
 
     def __init__(self) -> None:
         super().__init__()
-        self.algorithm: type[Algorithm] | None = None
+        self.algorithm: type[Algorithm] | None = None  # the algorithm whose form is shown, or
+        self.recipe: Recipe | None = None  # the analysis recipe chosen
+        self.recipes: dict[str, Recipe] = {}  # option id → bundled analysis recipe
         self.paths: list[str] = []
 
     def compose(self) -> ComposeResult:
@@ -75,7 +85,7 @@ class AnalysisScreen(Screen[None]):
         yield Static(id="status", markup=False)
         yield ProgressBar(id="progress", show_eta=False)
         with Horizontal():
-            yield OptionList(*registry.names("algorithm"), id="algorithms")
+            yield OptionList(*(Option(name, id=name) for name in registry.names("algorithm")), id="algorithms")
             with VerticalScroll(id="pane"):
                 yield Static("Choose an algorithm (↑ ↓, enter).", id="about", markup=False)
                 yield Static(id="result", markup=False)
@@ -85,6 +95,7 @@ class AnalysisScreen(Screen[None]):
         self.sub_title = "analysis"
         self.query_one("#algorithms", OptionList).focus()
         self.app.in_worker("read the session's datasets", self._datasets, self._got_datasets, owner=self)
+        self.app.in_worker("read the analysis recipes", self.app.model.analysis_recipes, self._got_recipes, owner=self)
         self.refresh_status()
         self.set_interval(0.2, self.refresh_status)
 
@@ -94,19 +105,40 @@ class AnalysisScreen(Screen[None]):
     def _got_datasets(self, paths: object) -> None:
         self.paths = list(paths)  # type: ignore[call-overload]
 
+    def _got_recipes(self, recipes: object) -> None:
+        self.recipes = {f"{RECIPE}{r.path.name}": r for r in recipes}  # type: ignore[attr-defined]
+        self.query_one("#algorithms", OptionList).add_options(
+            [Option(f"▸ {r.path.name}", id=key) for key, r in self.recipes.items()])
+
     # -- the form --------------------------------------------------------------------------------
     def on_option_list_option_highlighted(self, event: OptionList.OptionHighlighted) -> None:
-        if self.algorithm is None:
-            cls = self.app.model.session.registry.algorithm(str(event.option.prompt))
-            self.query_one("#about", Static).update(f"{cls.name} {cls.version}: {cls.description}")
+        if self.algorithm is None and self.recipe is None:
+            self.query_one("#about", Static).update(self.about(str(event.option.id)))
+
+    def about(self, option: str) -> str:
+        """What an entry of the list is: an algorithm's description, or a recipe's and its steps."""
+        if option in self.recipes:
+            recipe = self.recipes[option]
+            steps = ", ".join(step_summary(s.values) or s.action for s in recipe.steps)
+            return (f"analysis recipe {recipe.path.name}: {recipe.description or '(no description)'}\n"
+                    f"{len(recipe.steps)} steps: {steps}")
+        cls = self.app.model.session.registry.algorithm(option)
+        return f"{cls.name} {cls.version}: {cls.description}"
 
     async def on_option_list_option_selected(self, event: OptionList.OptionSelected) -> None:
-        await self.show_form(str(event.option.prompt))
+        option = str(event.option.id)
+        if option in self.recipes:
+            await self.query_one("#pane", VerticalScroll).remove_children("Select, .port, ParameterForm")
+            self.algorithm, self.recipe = None, self.recipes[option]
+            self.query_one("#about", Static).update(self.about(option) + "\n\nctrl+r runs its steps on this session")
+            self.query_one("#result", Static).update("")
+        else:
+            await self.show_form(option)
 
     async def show_form(self, name: str) -> None:
         """Replace the pane with the form of algorithm ``name``: one select per input, its parameters."""
         cls = self.app.model.session.registry.algorithm(name)
-        self.algorithm = cls
+        self.algorithm, self.recipe = cls, None
         pane = self.query_one("#pane", VerticalScroll)
         await pane.remove_children("Select, .port, ParameterForm")
         self.query_one("#about", Static).update(f"{cls.name} {cls.version}: {cls.description}\n"
@@ -154,11 +186,14 @@ class AnalysisScreen(Screen[None]):
     # -- running ---------------------------------------------------------------------------------
     def action_run(self) -> None:
         model = self.app.model
-        if self.algorithm is None:
-            self.app.notify("Choose an algorithm first (↑ ↓ and enter in the list).", severity="warning")
-            return
         if model.running is not None:
             self.app.notify(f"{model.running} is running; x cancels it.", severity="warning")
+            return
+        if self.recipe is not None:
+            self.run_recipe(self.recipe)
+            return
+        if self.algorithm is None:
+            self.app.notify("Choose an algorithm first (↑ ↓ and enter in the list).", severity="warning")
             return
         values = self.form_values()
         if values is None:
@@ -172,6 +207,30 @@ class AnalysisScreen(Screen[None]):
         model = self.app.model
         ref = model.run_algorithm(name, inputs, params)
         return ref, result_text(model.session.result(ref))
+
+    def run_recipe(self, recipe: Recipe) -> None:
+        """Run an analysis recipe's steps in a worker; then list the results they stored."""
+        model = self.app.model
+
+        def work() -> str:
+            before = {r.path for r in model.session.results()}
+            model.run_recipe(recipe)
+            new = [r for r in model.session.results() if r.path not in before]
+            cancelled = " (cancelled: no later step ran)" if model.session.stop_requested else ""
+            return "\n".join([f"{recipe.path.name}: {len(new)} results stored{cancelled}", "",
+                              *(f"  {r.path}: {r.status}" for r in new),
+                              "", "g shows their plots, b the file"])
+
+        self.query_one("#result", Static).update(f"running {recipe.path.name}…")
+        self.query_one("#algorithms", OptionList).focus()
+        self.app.in_worker(f"run {recipe.path.name}", work, self._show_recipe_result, owner=self)
+
+    def _show_recipe_result(self, text: object) -> None:
+        result = self.query_one("#result", Static)
+        result.update(str(text))
+        result.scroll_visible()
+        self.app.notify(str(text).splitlines()[0])
+        self.app.in_worker("read the session's datasets", self._datasets, self._got_datasets, owner=self)
 
     def _show_result(self, outcome: object) -> None:
         ref, text = outcome  # type: ignore[misc]
@@ -188,9 +247,10 @@ class AnalysisScreen(Screen[None]):
             text = "enter: choose · ctrl+r: run · x: cancel · esc: back"
             bar.update(total=1, progress=0)  # still, until a run reports
         else:
-            text = f"running {model.running} (x cancels)"
+            step = model.current_step
+            text = f"running {model.running}" + (f" step {step.index}: {step.action}" if step else "") + " (x cancels)"
             progress = model.progress
-            if progress is not None and progress.source == model.running:
+            if progress is not None and (progress.source == model.running or step is not None):
                 total = progress.data.get("total")
                 bar.update(total=total if total else None, progress=float(progress.data.get("done", 0)))
                 text += f": {progress.message}" if progress.message else ""

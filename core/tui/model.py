@@ -16,19 +16,22 @@ from __future__ import annotations
 import threading
 from collections import deque
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..algorithms import ResultRef
-from ..errors import SessionError
+from ..errors import MirrorlabError, SessionError
 from ..events import Event
 from ..recipes import Recipe, StepPlan, add_devices, load_recipe, recipe_record, run_steps
 from ..session import Session
 from ..snapshot import SessionSnapshot
 from ..streams import StreamSpec, Subscription
 
+#: The recipes that come with mirrorlab (package data of ``mirrorlab.sessions``).
+BUNDLED = resources.files("mirrorlab.sessions")
 #: Samples of each scalar stream kept for sparklines and live plots.
 HISTORY = 600
 #: Bytes of unread blocks a live view may hold per stream (a camera frame is ~0.2 MB).
@@ -240,16 +243,40 @@ class Console:
         """Stop acquiring (and the recording, written to the end)."""
         self.session.stop_acquisition()
 
-    def run_steps(self, start: int = 0) -> None:
-        """Run the recipe's steps from index ``start`` on this session (until one fails or
-        :meth:`cancel`); :attr:`current_step` says which one runs."""
-        if self.recipe is None:
+    def run_steps(self, start: int = 0, recipe: Recipe | None = None) -> None:
+        """Run the steps of ``recipe`` (default: the session's own) from index ``start`` on this
+        session, until one fails or :meth:`cancel`; :attr:`current_step` says which one runs."""
+        recipe = recipe or self.recipe
+        if recipe is None:
             return
         try:
             with self.session.operation():
-                run_steps(self.session, self.recipe.steps[start:], self._step_started)
+                run_steps(self.session, recipe.steps[start:], self._step_started)
         finally:
             self.current_step = None
+
+    def analysis_recipes(self) -> list[Recipe]:
+        """The bundled analysis recipes (no instruments, nothing recorded) that can run on this
+        session, e.g. the demo's ``rssr_analysis.toml`` (reads the recipe files: call from a worker)."""
+        found = []
+        for path in sorted(BUNDLED.iterdir(), key=lambda p: p.name):
+            if path.name.endswith(".toml"):
+                try:
+                    found.append(load_recipe(Path(str(path)), [], analysis=True))
+                except MirrorlabError:  # a recipe that records: not an analysis
+                    continue
+        return found
+
+    def run_recipe(self, recipe: Recipe) -> None:
+        """Run an analysis recipe's steps on this session (see :meth:`run_steps`)."""
+        if self.session.recording:
+            raise SessionError(f"{self.session.path} is recording; stop the recording (r) before running "
+                               f"{recipe.path.name}")
+        self.progress, self.running = None, recipe.path.name
+        try:
+            self.run_steps(0, recipe)
+        finally:
+            self.running = None
 
     def _step_started(self, step: StepPlan) -> None:
         self.progress = None

@@ -298,3 +298,39 @@ async def test_camera_follows_the_live_frames_of_a_preview(tmp_path: Path) -> No
             await app.run_action("quit")
     finally:
         console.close()
+
+
+async def test_demo_flow_record_then_reconstruct_then_plots(tmp_path: Path) -> None:
+    """What a newcomer does: open the demo recipe, record, stop, run the demo's analysis recipe
+    (a 3-D reconstruction) from the analysis screen, and look at its trajectories."""
+    from mirrorlab.core.cli.run_cmd import DEMO_ACQUIRE
+
+    console = Console.from_recipe(DEMO_ACQUIRE, tmp_path / "demo.h5")
+    app = MirrorlabApp(console)
+    session = console.session
+    try:
+        async with app.run_test(size=SIZE) as pilot:
+            await pilot.press("r")
+            await until(pilot, lambda: session.recording, "recording")
+            await until(pilot, lambda: all(i.state != "acquiring" for i in session.instruments.values()),
+                        "the films end", polls=2000)
+            if session.recording:
+                await pilot.press("r")
+            await until(pilot, lambda: not session.recording, "the recording stopped")
+            await pilot.press("a")
+            screen = app.screen
+            options = screen.query_one("#algorithms", OptionList)
+            await until(pilot, lambda: "recipe:rssr_analysis.toml" in [o.id for o in options.options], "the recipes")
+            options.highlighted = [o.id for o in options.options].index("recipe:rssr_analysis.toml")
+            await pilot.press("enter", "ctrl+r")
+            result = screen.query_one("#result", Static)
+            await until(pilot, lambda: "results stored" in str(result.render()), "the analysis ran", polls=4000)
+            assert "/results/reconstruct_mirror/run-0001: ok" in str(result.render())
+            await pilot.press("escape", "g")
+            select = app.screen.query_one("#what", Select)
+            await until(pilot, lambda: app.screen.shown is not None, "a plot")
+            assert app.screen.shown.kind == "trajectories"
+            assert any(str(p).startswith("trajectories: /results/reconstruct_mirror/") for p, _ in select._options)
+            await app.run_action("quit")
+    finally:
+        console.close()

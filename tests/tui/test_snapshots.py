@@ -52,6 +52,10 @@ def test_analysis_form(app: MirrorlabApp, snap_compare) -> None:
         from textual.widgets import OptionList
 
         await pilot.press("a")
+        for _ in range(400):  # until the worker has read the analysis recipes (listed last)
+            if pilot.app.screen.recipes:
+                break
+            await pilot.pause(0.05)
         options = pilot.app.screen.query_one("#algorithms", OptionList)
         options.highlighted = [str(o.prompt) for o in options.options].index("derivatives")
         await pilot.press("enter")
