@@ -139,7 +139,8 @@ class MirrorlabApp(App[int]):
             table.add_column(name, width=width, key=name)
         for source in self.model.sources:
             table.add_row(source, *[""] * (len(COLUMNS) - 1), key=source)
-        self.in_worker("read the session file", self.model.session.describe, self._show_file_summary)
+        self.in_worker("read the session file", self.model.session.describe, self._show_file_summary,
+                       owner=self.screen)
         self.refresh_view()
         self.set_interval(1 / self.poll_hz, self.refresh_view)
 
@@ -165,7 +166,7 @@ class MirrorlabApp(App[int]):
         Faults are checked on every poll; values, counters and sparklines are redrawn at
         :data:`VIEW_HZ`, and only the cells and lines whose text changed, without a layout pass:
         redrawing the whole screen ten times a second kept the event loop from answering keys."""
-        if self._quitting:
+        if self._quitting or self.query_one_optional("#sources") is None:  # quitting, or shutting down
             return
         snap = self.model.poll() if self.model.live else None
         self.snapshot = snap
@@ -351,10 +352,11 @@ class MirrorlabApp(App[int]):
         self.push_screen(SourceScreen(source))
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
-        self._update_identity()
+        if event.data_table.id == "sources" and event.data_table.is_attached:  # not another screen's table
+            self._update_identity()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        if event.row_key.value is not None:
+        if event.data_table.id == "sources" and event.row_key.value is not None:
             self.action_open_source(str(event.row_key.value))
 
     async def action_quit(self) -> None:
