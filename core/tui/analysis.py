@@ -22,7 +22,6 @@ from textual.widgets.option_list import Option
 from ..algorithms import Algorithm, Port, ResultRef
 from . import browse
 from .forms import ParameterForm, shown
-from .steps import step_summary
 from .widgets import KeysFooter
 
 if TYPE_CHECKING:
@@ -119,7 +118,7 @@ class AnalysisScreen(Screen[None]):
         """What an entry of the list is: an algorithm's description, or a recipe's and its steps."""
         if option in self.recipes:
             recipe = self.recipes[option]
-            steps = ", ".join(step_summary(s.values) or s.action for s in recipe.steps)
+            steps = ", ".join(str(s.values.get("algorithm") or s.action) for s in recipe.steps)
             return (f"analysis recipe {recipe.path.name}: {recipe.description or '(no description)'}\n"
                     f"{len(recipe.steps)} steps: {steps}")
         cls = self.app.model.session.registry.algorithm(option)

@@ -92,7 +92,7 @@ class MirrorlabApp(App[int]):
 
     TITLE = "mirrorlab"
     CSS = """
-    #info { height: 2; padding: 0 1; background: $boost; }
+    #info { height: 2; padding: 0 1; background: $boost; text-wrap: nowrap; text-overflow: ellipsis; }
     #sources { height: 1fr; min-height: 4; }
     #identity { height: 1; padding: 0 1; color: $text-muted; }
     #log { height: 7; border-top: solid $primary; }

@@ -5,7 +5,8 @@ Markers are detected on the shown frame, in a worker, by the registry's marker d
 algorithm whose one required input is ``frames`` and whose outputs include ``xy`` (px), whichever
 plugin provides it. Mirror pairs come from the newest stored result with outputs ``real`` and
 ``paired`` (frames, markers, [mirrors,] 2) px of the same frame count. A live session shows its
-newest frame (4 times a second); a session file its recorded frames (← → step, home/end).
+newest frame while it acquires (4 times a second); otherwise, and in a session file, the recorded
+frames are shown (← → step, home/end).
 Units: pixels, x right, y down.
 """
 
@@ -110,11 +111,13 @@ class CameraScreen(Screen[None]):
 
     def __init__(self) -> None:
         super().__init__()
-        self.cameras: list[str] = []  # live: "label/stream"; file: dataset paths
-        self.camera = 0
-        self.index = -1  # file: the frame shown (-1: the last)
+        self.cameras: list[str] = []  # live image streams, "label/stream"
+        self.recorded: list[str] | None = None  # recorded image datasets (None: not read yet)
+        self.camera = 0  # which camera of either list
+        self.index = -1  # recorded: the frame shown (-1: the last)
         self.frames = 0
         self._busy = False
+        self._drawn: tuple[int, int, tuple[int, int]] | None = None  # the recorded frame on screen
 
     @staticmethod
     def unavailable(model: Console) -> str:
@@ -131,19 +134,19 @@ class CameraScreen(Screen[None]):
     def on_mount(self) -> None:
         self.sub_title = "camera"
         model = self.app.model
+        self.cameras = [f"{src}/{name}" for (src, name), s in model.streams.items() if len(s.spec.shape) == 2]
         if model.live:
-            self.cameras = [f"{src}/{name}" for (src, name), s in model.streams.items() if len(s.spec.shape) == 2]
             self.set_interval(1 / FRAME_HZ, self.refresh_frame)
-            self.refresh_frame()
-        else:
-            self.app.in_worker("read the session file", lambda: browse.datasets(model.session.file), self._found, owner=self)
+        self.refresh_frame()
+
+    @property
+    def live_view(self) -> bool:
+        """Whether the newest live frames are shown (while acquiring) rather than recorded ones."""
+        return self.app.model.live and self.app.model.session.acquiring
 
     def _found(self, nodes: object) -> None:
-        self.cameras = [n.path for n in nodes if n.path.startswith("/instruments/")  # type: ignore[attr-defined]
-                        and n.path.endswith("/data") and len(n.shape) == 3 and n.shape[0] > 0]
-        if not self.cameras:
-            self._status("No recorded image stream in this file (a camera's frames/data).")
-            return
+        self.recorded = [n.path for n in nodes if n.path.startswith("/instruments/")  # type: ignore[attr-defined]
+                         and n.path.endswith("/data") and len(n.shape) == 3 and n.shape[0] > 0]
         self.refresh_frame()
 
     def _status(self, text: str) -> None:
@@ -154,19 +157,30 @@ class CameraScreen(Screen[None]):
         return max(8, region.width), max(4, 2 * region.height)
 
     def refresh_frame(self) -> None:
-        """Take the frame to show and draw it with its markers in a worker (one at a time)."""
-        if self._busy or not self.cameras:
+        """Take the frame to show and draw it with its markers in a worker (one at a time): the
+        newest live frame while acquiring, else a recorded frame (drawn again only when it changes)."""
+        if self._busy:
             return
-        model, camera, size = self.app.model, self.cameras[self.camera], self._frame_size()
-        if model.live:
+        model, size = self.app.model, self._frame_size()
+        if self.live_view and self.cameras:
+            camera = self.cameras[self.camera % len(self.cameras)]
             live = model.streams[tuple(camera.split("/", 1))]  # type: ignore[index]
             if live.latest is None:
-                self._status(f"{camera}: no frame yet; press p (preview) on the dashboard")
+                self._status(f"{camera}: no frame yet")
                 return
             frame, where = live.latest, f"{camera} at {live.latest_time:.2f} s"
+            self._drawn = None
             self._in_worker("draw the camera frame", lambda: self._draw(frame, None, where, size))
-        else:
-            index = self.index
+        elif self.recorded is None:  # read once which recorded image streams the file holds
+            self.recorded = []
+            self.app.in_worker("read the session file", lambda: browse.datasets(model.session.file), self._found,
+                               owner=self)
+        elif not self.recorded:
+            self._status("No image recorded yet: press p (preview) or r (record) on the dashboard."
+                         if model.live else "No recorded image stream in this file (a camera's frames/data).")
+        elif self._drawn != (self.camera, self.index, size):
+            self._drawn = (self.camera, self.index, size)
+            camera, index = self.recorded[self.camera % len(self.recorded)], self.index
             self._in_worker("read the camera frame", lambda: self._read(camera, index, size))
 
     def _in_worker(self, what: str, fn: Any) -> None:
@@ -184,7 +198,6 @@ class CameraScreen(Screen[None]):
         ds = file[path]
         self.frames = ds.shape[0]
         index = self.frames - 1 if index < 0 else min(index, self.frames - 1)
-        self.index = index
         pairs = stored_pairs(file, self.frames)
         frame_pairs = None if pairs is None else (pairs[0][index], pairs[1][index])
         return self._draw(ds[index], frame_pairs, f"{path} frame {index + 1}/{self.frames} (← →)", size)
@@ -204,13 +217,12 @@ class CameraScreen(Screen[None]):
         self._status(status)
 
     def action_next_camera(self) -> None:
-        if self.cameras:
-            self.camera = (self.camera + 1) % len(self.cameras)
-            self.index = -1
-            self.refresh_frame()
+        self.camera += 1
+        self.index = -1
+        self.refresh_frame()
 
     def action_step(self, frames: float) -> None:
-        if not self.app.model.live and self.frames:
+        if not self.live_view and self.frames:
             current = self.frames - 1 if self.index < 0 else self.index
             self.index = int(min(max(current + frames, 0), self.frames - 1))
             self.refresh_frame()

@@ -137,7 +137,8 @@ class PlotsScreen(Screen[None]):
             if kind is not None:
                 self.nodes[node.path] = (node, kind)
         order = list(KINDS)
-        found = sorted(self.nodes.items(), key=lambda item: (order.index(item[1][1]), item[0]))
+        # by kind, then the longest series first (a reconstruction before a handful of surveyed points)
+        found = sorted(self.nodes.items(), key=lambda item: (order.index(item[1][1]), -item[1][0].shape[0], item[0]))
         select = self.query_one("#what", Select)
         select.set_options([(f"{kind}: {path}", path) for path, (_, kind) in found])
         missing = [k for k in KINDS if k not in {kind for _, kind in self.nodes.values()}]

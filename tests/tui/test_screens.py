@@ -290,7 +290,7 @@ async def test_camera_follows_the_live_frames_of_a_preview(tmp_path: Path) -> No
         async with app.run_test(size=SIZE) as pilot:
             await pilot.press("c")
             status = app.screen.query_one("#status", Static)
-            await until(pilot, lambda: "no frame yet; press p" in str(status.render()), "the hint")
+            await until(pilot, lambda: "press p (preview)" in str(status.render()), "the hint")
             await pilot.press("p")
             await until(pilot, lambda: "markers (detect_markers)" in str(status.render()), "a live frame", polls=600)
             first = str(status.render()).split(" at ")[1].split(" s")[0]
