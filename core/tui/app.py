@@ -191,10 +191,7 @@ class MirrorlabApp(App[int]):
         description, status = self._file_info  # read once, in a worker: the loop never waits on the file
         text = Text(f"{description or '(no description)'}\n", overflow="ellipsis", no_wrap=True)
         if snap is None:
-            if self.model.read_only_reason:
-                text.append(f"session file, status {status}: browsing (read-only)", style="bold")
-            else:
-                text.append(f"session file, status {status}: a analysis, b browse, g plots", style="bold")
+            text.append(f"session file, status {status}: a analysis, b browse, g plots", style="bold")
             return text
         if snap.recording:
             text.append(f"● RECORDING {snap.recording_seconds:5.1f} s", style="bold red")

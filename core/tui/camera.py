@@ -141,8 +141,9 @@ class CameraScreen(Screen[None]):
 
     @property
     def live_view(self) -> bool:
-        """Whether the newest live frames are shown (while acquiring) rather than recorded ones."""
-        return self.app.model.live and self.app.model.session.acquiring
+        """Whether live frames are shown (while a camera acquires) rather than recorded ones."""
+        instruments = self.app.model.session.instruments
+        return any(instruments[c.split("/", 1)[0]].state == "acquiring" for c in self.cameras)
 
     def _found(self, nodes: object) -> None:
         self.recorded = [n.path for n in nodes if n.path.startswith("/instruments/")  # type: ignore[attr-defined]
@@ -162,7 +163,7 @@ class CameraScreen(Screen[None]):
         if self._busy:
             return
         model, size = self.app.model, self._frame_size()
-        if self.live_view and self.cameras:
+        if self.live_view:
             camera = self.cameras[self.camera % len(self.cameras)]
             live = model.streams[tuple(camera.split("/", 1))]  # type: ignore[index]
             if live.latest is None:
@@ -200,15 +201,16 @@ class CameraScreen(Screen[None]):
         index = self.frames - 1 if index < 0 else min(index, self.frames - 1)
         pairs = stored_pairs(file, self.frames)
         frame_pairs = None if pairs is None else (pairs[0][index], pairs[1][index])
-        return self._draw(ds[index], frame_pairs, f"{path} frame {index + 1}/{self.frames} (← →)", size)
+        name = path.removeprefix("/instruments/").removesuffix("/data")
+        return self._draw(ds[index], frame_pairs, f"{name} frame {index + 1}/{self.frames} (← →)", size)
 
     def _draw(self, frame: np.ndarray, pairs: Any, where: str, size: tuple[int, int]) -> tuple[Pixels, str]:
         cls = detector(self.app.model.session.registry)
         markers = detect(cls, frame) if cls is not None else np.empty((0, 2))
         image = compose_image(frame, markers, pairs, size)
         found = f"{len(markers)} markers ({cls.name})" if cls is not None else "no marker detector installed"
-        mirror = f", {int(np.isfinite(pairs[1]).all(axis=-1).sum())} mirror pairs" if pairs is not None else \
-            ", mirror pairs: run the pairing analysis"
+        mirror = f" · {int(np.isfinite(pairs[1]).all(axis=-1).sum())} mirror pairs" if pairs is not None else \
+            " · mirror pairs: run the pairing analysis (a)"
         return Pixels.from_image(image), f"{where} · {found}{mirror}"
 
     def _shown(self, outcome: object) -> None:

@@ -13,8 +13,10 @@ Units: session seconds, each stream's declared unit, bytes.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections import deque
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -107,8 +109,6 @@ class Console:
         self.running: str | None = None
         #: Instruments the operator disconnected (:meth:`disconnect`).
         self.disconnected: set[str] = set()
-        #: Why the file is open read-only (``""``: it is writable, or a live session).
-        self.read_only_reason = ""
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
@@ -133,16 +133,42 @@ class Console:
 
     @classmethod
     def from_file(cls, path: str | Path) -> Console:
-        """An existing session file, for browsing and analysis (writable, so that algorithms can
-        store their results; read-only if a crashed recording left it open)."""
+        """An existing session file, for browsing and analysis. It is open read-only, and for writing
+        only while an analysis runs (:meth:`writable`): a terminal closed meanwhile never leaves the
+        file open for writing."""
+        return cls(Session.open(path))
+
+    @contextlib.contextmanager
+    def writable(self) -> Iterator[Session]:
+        """The session open for writing during the block (a session file opened for browsing is
+        closed and opened again writable, then read-only again after)."""
+        if self.session.writable:
+            yield self.session
+            return
+        path, registry = self.session.path, self.session.registry
+        self._reopen(lambda: Session.open(path, writable=True, registry=registry),
+                     lambda: Session.open(path, registry=registry))
         try:
-            return cls(Session.open(path, writable=True))
-        except SessionError as exc:
-            if "session close" not in str(exc):  # not the crashed-file case: nothing to browse
-                raise
-            console = cls(Session.open(path))
-            console.read_only_reason = str(exc)
-            return console
+            yield self.session
+        finally:
+            self._reopen(lambda: Session.open(path, registry=registry))
+
+    def _reopen(self, *openers: Callable[[], Session]) -> None:
+        """Close the session and open it with the first opener that works (the error of the first
+        is raised once one of the others has opened it)."""
+        self._unsubscribe()
+        self.session.close()
+        error: BaseException | None = None
+        for opener in openers:
+            try:
+                self.session = opener()
+            except MirrorlabError as exc:
+                error = error or exc
+                continue
+            break
+        self._unsubscribe = self.session.events.subscribe(self._on_event)
+        if error is not None:
+            raise error
 
     def _watch(self, source: str, specs: list[StreamSpec]) -> None:
         for spec in specs:
@@ -274,7 +300,8 @@ class Console:
                                f"{recipe.path.name}")
         self.progress, self.running = None, recipe.path.name
         try:
-            self.run_steps(0, recipe)
+            with self.writable():
+                self.run_steps(0, recipe)
         finally:
             self.running = None
 
@@ -293,7 +320,8 @@ class Console:
             raise SessionError(f"{self.session.path} is recording; stop the recording (r) before running {name}")
         self.progress, self.running = None, name
         try:
-            return self.session.run(name, inputs, parameters)
+            with self.writable() as session:
+                return session.run(name, inputs, parameters)
         finally:
             self.running = None
 

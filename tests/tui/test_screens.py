@@ -144,6 +144,7 @@ async def test_analysis_runs_an_algorithm_from_its_form_and_shows_the_result(rec
             await until(pilot, lambda: ": ok" in str(result.render()), "the result shows", polls=1200)
             text = str(result.render())
             assert "xy  (6," in text and '"min_area": 4.0' in text and '"frames": "/instruments/cam/frames/data"' in text
+            assert not console.session.writable  # written only while the run ran, read-only again
     finally:
         console.close()
     with Session.open(path) as s:
@@ -218,7 +219,7 @@ async def test_camera_shows_a_recorded_frame_with_its_markers(recording: Path) -
             await pilot.press("c")
             status = app.screen.query_one("#status", Static)
             await until(pilot, lambda: "markers" in str(status.render()), "the frame is drawn", polls=600)
-            assert f"frame {FRAMES}/{FRAMES}" in str(status.render()) and "(detect_markers)" in str(status.render())
+            assert f"cam/frames frame {FRAMES}/{FRAMES}" in str(status.render()) and "(detect_markers)" in str(status.render())
             count = int(str(status.render()).split(" markers")[0].rsplit(" ", 1)[-1])
             assert count > 0
             await pilot.press("home")
