@@ -58,7 +58,8 @@ def walk(group: h5py.Group) -> list[Node]:
     def visit(name: str, obj: h5py.HLObject) -> None:
         if isinstance(obj, h5py.Dataset):
             unit = obj.attrs.get("unit", obj.parent.attrs.get("unit", "") if obj.name.endswith("/data") else "")
-            nodes.append(Node(obj.name, True, tuple(obj.shape), str(obj.dtype), _text(unit)))
+            dtype = f"{len(obj.dtype.names)} fields" if obj.dtype.names else str(obj.dtype)  # a table: short
+            nodes.append(Node(obj.name, True, tuple(obj.shape), dtype, _text(unit)))
         else:
             nodes.append(Node(obj.name, False))
 
