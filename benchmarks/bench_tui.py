@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -76,7 +77,8 @@ def main() -> None:
         dropped = sum(int(s.file[f"instruments/{label}/{name}"].attrs["dropped"])
                       for label, inst in info["instruments"].items() for name in inst["streams"])
         cam_frames = info["instruments"]["cam"]["streams"]["frames"]["samples"]
-    print(f"key press -> screen changed, ms ({SENSORS} angle sources at 50 Hz + a 30 frames/s 344x512 camera)")
+    print(f"key press -> screen changed, ms ({SENSORS} angle sources at 50 Hz + a 30 frames/s 344x512 camera); "
+          f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print(f"{'run':28s} {'n':>5s} {'p50':>7s} {'p99':>7s} {'max':>7s} {'p99 x idle':>11s}")
     p_idle = np.percentile(result["idle"], [50, 99, 100])
     for name, values in (("idle session (baseline)", result["idle"]), ("recording", result["loaded"])):

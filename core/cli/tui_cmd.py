@@ -20,7 +20,8 @@ def add(sub: argparse._SubParsersAction) -> None:
                        description="Open a recipe (its instruments connected, nothing recorded until you press r) or "
                                    "a session file (browsing) in the operator console. Without a file, the bundled "
                                    f"demonstration recipe ({DEMO_ACQUIRE.name}). Keys: ? help, p preview, r record, "
-                                   "s stop, enter details, ctrl+p every action, ctrl+q quit.")
+                                   "s stop, t steps, a analysis, b browse, g plots, c camera, enter details, d light/dark, "
+                                   "ctrl+p every action, ctrl+q quit.")
     p.add_argument("file", type=existing_path, nargs="?", metavar="RECIPE.toml | SESSION.h5",
                    help="recipe to open live, or session file to browse (default: the demonstration recipe)")
     p.add_argument("--out", type=Path, metavar="FILE.h5",

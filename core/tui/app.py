@@ -10,23 +10,31 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from functools import partial
+from importlib import import_module
 
 from rich.text import Text
 from textual.app import App, ComposeResult, SystemCommand
 from textual.binding import Binding
 from textual.renderables.sparkline import Sparkline
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, RichLog, Static
+from textual.widget import Widget
+from textual.widgets import DataTable, Header, RichLog, Static
 
 from ..errors import MirrorlabError
 from ..events import Event
 from ..snapshot import InstrumentSnapshot, SessionSnapshot
 from .dialogs import ErrorDialog, FaultDialog, HelpScreen
 from .model import Console
+from .widgets import KeysFooter
 
 #: Dashboard refreshes per second.
 POLL_HZ = 10
+#: Redraws of the values, counters and sparklines per second (a poll is cheap, a redraw is not).
+VIEW_HZ = 2
+#: Samples a sparkline shows.
+TREND_SAMPLES = 60
 COLUMNS = ("source", "state", "value", "trend", "samples", "drops", "rec")
 STATE_STYLE = {"acquiring": "green", "running": "green", "reconnecting": "bold yellow", "failed": "bold red",
                "connecting": "yellow"}
@@ -37,6 +45,39 @@ ADVICE = {
     "preview": "Check the instrument named above (cable, power, port), then press p again.",
     "stop": "Press s again; if an instrument does not stop, power-cycle it before using it again.",
 }
+
+
+@dataclass(frozen=True)
+class ScreenEntry:
+    """A screen the dashboard opens: its key, its command-palette title and help, and where its
+    class lives (``module:Class`` relative to this package, imported on first use). A screen class
+    may define ``unavailable(model) -> str``: why it cannot open now (``""``: it can)."""
+
+    key: str
+    title: str
+    help: str
+    target: str
+
+    def load(self) -> type[Screen]:
+        module, _, name = self.target.partition(":")
+        return getattr(import_module(module, __package__), name)
+
+
+#: Every screen the dashboard opens, by key and from the command palette (add new screens here).
+SCREENS: list[ScreenEntry] = [
+    ScreenEntry("t", "Steps", "the recipe's steps: run from one, see progress, cancel", ".steps:StepsScreen"),
+    ScreenEntry("a", "Analysis", "run an algorithm: its form, progress, cancel, result",
+                ".analysis:AnalysisScreen"),
+    ScreenEntry("b", "Browse", "the session file: tree, previews, attributes, provenance",
+                ".browser:BrowserScreen"),
+    ScreenEntry("g", "Plots", "trajectories, velocities, joint angles, tracker angles", ".plots:PlotsScreen"),
+    ScreenEntry("c", "Camera", "the newest frame, detected markers, mirror pairs", ".camera:CameraScreen"),
+    ScreenEntry("v", "Virtual chain", "turn a virtual input chain's joints, see it retargeted", ".chain:ChainScreen"),
+    ScreenEntry("m", "Dexterity task", "sweep the least area moving a segment, B on the x axis",
+                ".dexterity:DexterityScreen"),
+]
+#: The two built-in themes the ``d`` key switches between.
+THEMES = ("textual-dark", "textual-light")
 
 
 def human_bytes(n: int) -> str:
@@ -54,7 +95,7 @@ class MirrorlabApp(App[int]):
 
     TITLE = "mirrorlab"
     CSS = """
-    #info { height: 2; padding: 0 1; background: $boost; }
+    #info { height: 2; padding: 0 1; background: $boost; text-wrap: nowrap; text-overflow: ellipsis; }
     #sources { height: 1fr; min-height: 4; }
     #identity { height: 1; padding: 0 1; color: $text-muted; }
     #log { height: 7; border-top: solid $primary; }
@@ -64,9 +105,8 @@ class MirrorlabApp(App[int]):
         Binding("p", "preview", "Preview"),
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
-        Binding("t", "steps", "Steps"),
-        Binding("v", "virtual_chain", "Chain", show=False),
-        Binding("d", "dexterity", "Dexterity", show=False),
+        *(Binding(e.key, f"open_screen({e.title!r})", e.title) for e in SCREENS),
+        Binding("d", "toggle_theme", "Light / dark", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
 
@@ -80,6 +120,10 @@ class MirrorlabApp(App[int]):
         self._log_seen = 0
         self._faults: set[str] = set()  # instruments whose current fault has been shown
         self._recorder_error = ""
+        self._polls = 0
+        # the description and status of the file (a recipe's description is known without reading it)
+        self._file_info = (model.recipe.description if model.recipe is not None else "(reading the session file…)", "")
+        self._shown: dict[object, object] = {}  # what each Static / table cell shows now
         self.sub_title = model.session.path.name
 
     # -- layout ----------------------------------------------------------------------------------
@@ -90,7 +134,7 @@ class MirrorlabApp(App[int]):
         yield table
         yield Static(id="identity", markup=False)
         yield RichLog(id="log", max_lines=200, wrap=False, markup=False)
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         table = self.query_one("#sources", DataTable)
@@ -98,14 +142,19 @@ class MirrorlabApp(App[int]):
             table.add_column(name, width=width, key=name)
         for source in self.model.sources:
             table.add_row(source, *[""] * (len(COLUMNS) - 1), key=source)
-        if not self.model.live:
-            self._show_file_summary()
+        self.in_worker("read the session file", self.model.session.describe, self._show_file_summary,
+                       owner=self.screen)
         self.refresh_view()
         self.set_interval(1 / self.poll_hz, self.refresh_view)
 
-    def _show_file_summary(self) -> None:
-        """A session file opened for browsing: its recorded streams and results in the log pane."""
-        info = self.model.session.describe()
+    def _show_file_summary(self, info: object) -> None:
+        """The file's description and status for the header; for a session file opened for
+        browsing, its recorded streams and results in the log pane."""
+        assert isinstance(info, dict)
+        self._file_info = (str(info["attributes"].get("description", "")), str(info["attributes"].get("status", "")))
+        self._show("#info", self._info_text(self.snapshot))
+        if self.model.live:
+            return
         log = self.query_one("#log", RichLog)
         for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
             for name, st in inst["streams"].items():
@@ -115,24 +164,37 @@ class MirrorlabApp(App[int]):
 
     # -- refreshing ------------------------------------------------------------------------------
     def refresh_view(self) -> None:
-        """Poll the console and update every widget (the timer calls this at ``poll_hz``)."""
-        if self._quitting:
+        """Poll the console and update what changed (the timer calls this at ``poll_hz``).
+
+        Faults are checked on every poll; values, counters and sparklines are redrawn at
+        :data:`VIEW_HZ`, and only the cells and lines whose text changed, without a layout pass:
+        redrawing the whole screen ten times a second kept the event loop from answering keys."""
+        if self._quitting or self.query_one_optional("#sources") is None:  # quitting, or shutting down
             return
         snap = self.model.poll() if self.model.live else None
         self.snapshot = snap
-        self.query_one("#info", Static).update(self._info_text(snap))
+        self._polls += 1
+        if snap is not None:
+            self._check_faults(snap)
+        if self._polls % max(1, round(self.poll_hz / VIEW_HZ)) != 1 and self._polls > 1:
+            return
+        self._show("#info", self._info_text(snap))
         if snap is not None:
             self._update_table(snap)
-            self._check_faults(snap)
         self._update_identity()
         self._update_log()
 
+    def _show(self, selector: str, text: Text | str) -> None:
+        """Update a fixed-size Static only if its text changed (no layout: its size does not change)."""
+        if self._shown.get(selector) != text:
+            self._shown[selector] = text
+            self.query_one(selector, Static).update(text, layout=False)
+
     def _info_text(self, snap: SessionSnapshot | None) -> Text:
-        session = self.model.session
-        description = session.attrs.get("description", "") or "(no description)"
-        text = Text(f"{description}\n", overflow="ellipsis", no_wrap=True)
+        description, status = self._file_info  # read once, in a worker: the loop never waits on the file
+        text = Text(f"{description or '(no description)'}\n", overflow="ellipsis", no_wrap=True)
         if snap is None:
-            text.append(f"session file, status {session.status}: browsing (read-only)", style="bold")
+            text.append(f"session file, status {status}: a analysis, b browse, g plots", style="bold")
             return text
         if snap.recording:
             text.append(f"● RECORDING {snap.recording_seconds:5.1f} s", style="bold red")
@@ -151,15 +213,21 @@ class MirrorlabApp(App[int]):
             ctrl = snap.controllers.get(source)
             state = inst.state if inst is not None else ctrl.state if ctrl is not None else "?"
             live = next(iter(self.model.source_streams(source)), None)
-            value = live.describe_latest() if live is not None else "–"
-            trend = Sparkline(list(live.values)[-60:], width=12) if live is not None and len(live.values) > 1 else ""
             if inst is not None:
                 counts = (str(inst.samples), str(inst.dropped), str(inst.reconnects))
             else:
                 counts = (str(ctrl.commands), str(ctrl.failed_commands), "") if ctrl is not None else ("", "", "")
-            cells = (Text(state, style=STATE_STYLE.get(state, "")), value, trend, *counts)
-            for column, cell in zip(COLUMNS[1:], cells):
-                table.update_cell(source, column, cell)
+            recent = tuple(live.values)[-TREND_SAMPLES:] if live is not None else ()
+            cells = dict(zip(COLUMNS[1:], (Text(state, style=STATE_STYLE.get(state, "")),
+                                           live.describe_latest() if live else "–",
+                                           recent if len(recent) > 1 else (), *counts)))
+            for column, value in cells.items():
+                if self._shown.get((source, column)) == value:
+                    continue
+                self._shown[(source, column)] = value
+                if column == "trend":
+                    value = Sparkline(list(value), width=12) if value else ""
+                table.update_cell(source, column, value)
 
     def _update_identity(self) -> None:
         table = self.query_one("#sources", DataTable)
@@ -170,13 +238,14 @@ class MirrorlabApp(App[int]):
             if ctrl is not None and ctrl.latency is not None:
                 line += f" · latency p99 {1000 * ctrl.latency.p99:.1f} ms"
         if table.row_count:
-            self.query_one("#identity", Static).update(line)
+            self._show("#identity", line)
 
     def _update_log(self) -> None:
         events, self._log_seen = self.model.events_since(self._log_seen)
-        log = self.query_one("#log", RichLog)
-        for event in events:
-            log.write(log_line(event))
+        if events:
+            log = self.query_one("#log", RichLog)
+            for event in events:
+                log.write(log_line(event))
 
     def _check_faults(self, snap: SessionSnapshot) -> None:
         """Open the fault dialog once per drop-out; the recorder's error once per recording."""
@@ -206,8 +275,12 @@ class MirrorlabApp(App[int]):
     def show_error(self, title: str, message: str, advice: str = "") -> None:
         self.push_screen(ErrorDialog(title, message, advice))
 
-    def in_worker(self, what: str, fn: Callable[[], object], done: Callable[[object], None] | None = None) -> None:
-        """Run ``fn`` in a worker thread; an error becomes a dialog naming ``what`` failed."""
+    def in_worker(self, what: str, fn: Callable[[], object], done: Callable[[object], None] | None = None,
+                  owner: Widget | None = None) -> None:
+        """Run ``fn`` in a worker thread; an error becomes a dialog naming ``what`` failed.
+
+        ``done(result)`` runs on the event loop after success, unless ``owner`` (the screen that
+        asked) has been closed meanwhile."""
         def work() -> None:
             try:
                 result = fn()
@@ -218,8 +291,13 @@ class MirrorlabApp(App[int]):
                                       ADVICE.get(what, ""))
             else:
                 if done is not None:
-                    self.call_from_thread(done, result)
+                    self.call_from_thread(self._done, done, result, owner)
         self.run_worker(work, thread=True, group="actions", name=what)
+
+    @staticmethod
+    def _done(done: Callable[[object], None], result: object, owner: Widget | None) -> None:
+        if owner is None or owner.is_attached:
+            done(result)
 
     def _require_live(self) -> bool:
         if not self.model.live:
@@ -228,7 +306,7 @@ class MirrorlabApp(App[int]):
         return self.model.live
 
     def action_help(self) -> None:
-        self.push_screen(HelpScreen())
+        self.push_screen(HelpScreen([(e.key, e.help) for e in SCREENS]))
 
     def action_preview(self) -> None:
         if self._require_live():
@@ -243,31 +321,42 @@ class MirrorlabApp(App[int]):
         if self._require_live():
             self.in_worker("stop", self.model.stop)
 
-    def action_steps(self) -> None:
-        if self.model.recipe is None:
-            self.notify("A session file has no recipe steps; open a recipe to run them.", severity="warning")
-            return
-        from .steps import StepsScreen
+    def action_open_screen(self, title: str) -> None:
+        """Open one of :data:`SCREENS` (by title), or say why it cannot open now."""
+        cls = next(e for e in SCREENS if e.title == title).load()
+        unavailable = getattr(cls, "unavailable", None)
+        reason = unavailable(self.model) if unavailable is not None else ""
+        if reason:
+            self.notify(reason, severity="warning")
+        else:
+            self.push_screen(cls())
 
-        self.push_screen(StepsScreen())
+    def action_connect(self, source: str) -> None:
+        if self._require_live():
+            self.in_worker(f"connect {source}", partial(self.model.connect, source),
+                           lambda _: self.notify(f"{source} connected; p starts it acquiring"))
 
-    def action_virtual_chain(self) -> None:
-        from .chain import ChainScreen
+    def action_disconnect(self, source: str) -> None:
+        if self._require_live():
+            self.in_worker(f"disconnect {source}", partial(self.model.disconnect, source),
+                           lambda _: self.notify(f"{source} disconnected; ctrl+o in its detail connects it again"))
 
-        self.push_screen(ChainScreen())
-
-    def action_dexterity(self) -> None:
-        from .dexterity import DexterityScreen
-
-        self.push_screen(DexterityScreen())
+    def action_toggle_theme(self) -> None:
+        """Switch between the light and the dark theme."""
+        self.theme = THEMES[1] if self.theme == THEMES[0] else THEMES[0]
+        self.notify(f"theme {self.theme}")
 
     def action_open_source(self, source: str) -> None:
         from .detail import SourceScreen
 
         self.push_screen(SourceScreen(source))
 
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        if event.data_table.id == "sources" and event.data_table.is_attached:  # not another screen's table
+            self._update_identity()
+
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        if event.row_key.value is not None:
+        if event.data_table.id == "sources" and event.row_key.value is not None:
             self.action_open_source(str(event.row_key.value))
 
     async def action_quit(self) -> None:
@@ -287,11 +376,14 @@ class MirrorlabApp(App[int]):
         yield SystemCommand("Preview", "acquire without recording (p)", self.action_preview)
         yield SystemCommand("Record", "start or stop recording every instrument (r)", self.action_record)
         yield SystemCommand("Stop", "stop acquiring; a recording is written to the end (s)", self.action_stop)
-        yield SystemCommand("Steps", "the recipe's steps: run from one, see progress, cancel (t)", self.action_steps)
-        yield SystemCommand("Virtual chain", "turn a virtual input chain's joints, see it retargeted (v)",
-                            self.action_virtual_chain)
-        yield SystemCommand("Dexterity task", "sweep the least area moving a segment, B on the x axis (d)",
-                            self.action_dexterity)
+        for source in self.model.session.instruments if self.model.live else ():
+            yield SystemCommand(f"Connect {source}", f"connect {source} again (ctrl+o in its detail)",
+                                partial(self.action_connect, source))
+            yield SystemCommand(f"Disconnect {source}", f"stop {source} and release its device (ctrl+o in its detail)",
+                                partial(self.action_disconnect, source))
+        for e in SCREENS:
+            yield SystemCommand(e.title, f"{e.help} ({e.key})", partial(self.action_open_screen, e.title))
+        yield SystemCommand("Light / dark", "switch between the light and the dark theme (d)", self.action_toggle_theme)
         for source in self.model.sources:
             yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",
                                 partial(self.action_open_source, source))

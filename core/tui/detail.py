@@ -8,10 +8,11 @@ from typing import TYPE_CHECKING, Any
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import Footer, Header, Input, Static
+from textual.widgets import Header, Input, Static
 from textual_plotext import PlotextPlot
 
 from .forms import ParameterForm
+from .widgets import KeysFooter
 
 if TYPE_CHECKING:
     from .app import MirrorlabApp
@@ -45,7 +46,7 @@ class StreamPlot(PlotextPlot):
 class SourceScreen(Screen[None]):
     """``enter`` on a dashboard row: one instrument or controller in detail; esc goes back."""
 
-    BINDINGS = [Binding("escape", "back", "Back")]
+    BINDINGS = [Binding("ctrl+o", "connection", "Connect/disconnect"), Binding("escape", "back", "Back")]
     DEFAULT_CSS = """
     #head { height: 2; padding: 0 1; background: $boost; }
     """
@@ -71,7 +72,7 @@ class SourceScreen(Screen[None]):
         for live_stream in model.source_streams(self.source):
             if live_stream.scalar:
                 yield StreamPlot(self.source, live_stream.spec.name)
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         self.sub_title = self.source
@@ -86,7 +87,8 @@ class SourceScreen(Screen[None]):
         if snap is not None:
             item: Any = snap.instruments.get(self.source) or snap.controllers.get(self.source)
             state = f"state {item.state}" if item is not None else ""
-        hint = "enter on a live parameter sends it as a set-point" if self.app.model.live else "read-only"
+        hint = ("enter on a live parameter sends it as a set-point, ctrl+o connects / disconnects"
+                if self.app.model.live else "read-only")
         self.query_one("#head", Static).update(f"{self.source}: {self.app.model.identity(self.source)}\n"
                                                f"{state}   ({hint}; esc back)")
 
@@ -112,6 +114,15 @@ class SourceScreen(Screen[None]):
                            lambda applied: self.app.notify(f"{self.source}.{name} = {applied:g} acknowledged"
                                                            if isinstance(applied, float) else
                                                            f"{self.source}.{name} = {applied} acknowledged"))
+
+    def action_connection(self) -> None:
+        """Disconnect the instrument (it stops, its device is released), or connect it again."""
+        if not self.app.model.live or self.source not in self.app.model.session.instruments:
+            self.app.notify("Only an instrument of a live session connects and disconnects.", severity="warning")
+        elif self.source in self.app.model.disconnected:
+            self.app.action_connect(self.source)
+        else:
+            self.app.action_disconnect(self.source)
 
     def action_back(self) -> None:
         self.app.pop_screen()

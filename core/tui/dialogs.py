@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from rich.markup import escape
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
@@ -12,23 +13,24 @@ from textual.widgets import Static
 
 from ..snapshot import InstrumentSnapshot
 
-HELP = """\
-[b]mirrorlab operator console[/b]
+#: The dashboard's own keys, as the help shows them (the screens' keys are added by the app).
+KEYS = (
+    ("p", "preview: acquire, record nothing"),
+    ("r", "start / stop recording"),
+    ("s", "stop acquiring (a recording is written to the end)"),
+    ("enter", "the selected instrument: settings, set-points, plots, connect"),
+)
+FOOTNOTE = """\
+[b]esc[/b] back / close · [b]d[/b] light / dark theme · [b]ctrl+p[/b] every action
+[b]ctrl+q[/b] quit: stops acquiring and closes the session file.
+A device that drops out reconnects by itself; a dialog counts down."""
 
-[b]?[/b]        this help            [b]ctrl+p[/b]   every action (command palette)
-[b]p[/b]        preview: acquire, record nothing
-[b]r[/b]        start / stop recording (all instruments)
-[b]s[/b]        stop acquiring (ends a recording, written to the end)
-[b]t[/b]        the recipe's steps: run from one, progress, x cancels
-[b]v[/b] / [b]d[/b]    virtual chain retargeted live / dexterity task (swept area)
-[b]enter[/b]    details of the selected instrument or controller:
-         settings, live set-points, live plots
-[b]esc[/b]      back / close a dialog
-[b]ctrl+q[/b]   quit: stops acquiring and closes the session file
 
-Warnings in the log are yellow, errors red. A device that drops out
-reconnects by itself within its budget; a dialog counts down meanwhile.\
-"""
+def help_text(screens: list[tuple[str, str]]) -> str:
+    """The help: one line per key (the dashboard's and the screens'), then the common keys."""
+    lines = ["[b]mirrorlab operator console[/b]", ""]
+    lines += [f"[b]{escape(key):6s}[/b] {escape(what)}" for key, what in (*KEYS, *screens)]
+    return "\n".join([*lines, "", FOOTNOTE])
 
 
 class _Dialog(ModalScreen[None]):
@@ -65,8 +67,8 @@ class HelpScreen(_Dialog):
     markup = True
     BINDINGS = [*_Dialog.BINDINGS, Binding("question_mark", "close", "Close", show=False)]
 
-    def __init__(self) -> None:
-        super().__init__("Help", HELP)
+    def __init__(self, screens: list[tuple[str, str]]) -> None:
+        super().__init__("Help", help_text(screens))
 
 
 class ErrorDialog(_Dialog):

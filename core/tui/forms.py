@@ -40,7 +40,8 @@ def describe(parameter: Parameter) -> str:
     return " · ".join(parts) + (f" — {parameter.help}" if parameter.help else "")
 
 
-def _shown(value: Any) -> str:
+def shown(value: Any) -> str:
+    """A value as the form shows it (``""`` for none; floats to 6 significant digits)."""
     return "" if value is None else f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
@@ -65,7 +66,7 @@ class ParameterForm(VerticalScroll):
     def compose(self) -> ComposeResult:
         for p in self.parameters:
             yield Static(describe(p), classes="label", markup=False)
-            yield Input(_shown(self.values.get(p.name, p.default)), id=f"param-{p.name}", compact=True,
+            yield Input(shown(self.values.get(p.name, p.default)), id=f"param-{p.name}", compact=True,
                         validators=[ParameterValidator(p)], disabled=p.name not in self.editable,
                         validate_on=["changed", "submitted"])
             yield Static("", id=f"problem-{p.name}", classes="problem", markup=False)

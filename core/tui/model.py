@@ -13,20 +13,27 @@ Units: session seconds, each stream's declared unit, bytes.
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections import deque
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..algorithms import ResultRef
+from ..errors import MirrorlabError, SessionError
 from ..events import Event
 from ..recipes import Recipe, StepPlan, add_devices, load_recipe, recipe_record, run_steps
 from ..session import Session
 from ..snapshot import SessionSnapshot
 from ..streams import StreamSpec, Subscription
 
+#: The recipes that come with mirrorlab (package data of ``mirrorlab.sessions``).
+BUNDLED = resources.files("mirrorlab.sessions")
 #: Samples of each scalar stream kept for sparklines and live plots.
 HISTORY = 600
 #: Bytes of unread blocks a live view may hold per stream (a camera frame is ~0.2 MB).
@@ -98,6 +105,10 @@ class Console:
         #: The recipe step running now (``None``: none), and the newest progress event.
         self.current_step: StepPlan | None = None
         self.progress: Event | None = None
+        #: The algorithm running now (``None``: none).
+        self.running: str | None = None
+        #: Instruments the operator disconnected (:meth:`disconnect`).
+        self.disconnected: set[str] = set()
 
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
@@ -122,8 +133,42 @@ class Console:
 
     @classmethod
     def from_file(cls, path: str | Path) -> Console:
-        """An existing session file, read-only, for browsing."""
+        """An existing session file, for browsing and analysis. It is open read-only, and for writing
+        only while an analysis runs (:meth:`writable`): a terminal closed meanwhile never leaves the
+        file open for writing."""
         return cls(Session.open(path))
+
+    @contextlib.contextmanager
+    def writable(self) -> Iterator[Session]:
+        """The session open for writing during the block (a session file opened for browsing is
+        closed and opened again writable, then read-only again after)."""
+        if self.session.writable:
+            yield self.session
+            return
+        path, registry = self.session.path, self.session.registry
+        self._reopen(lambda: Session.open(path, writable=True, registry=registry),
+                     lambda: Session.open(path, registry=registry))
+        try:
+            yield self.session
+        finally:
+            self._reopen(lambda: Session.open(path, registry=registry))
+
+    def _reopen(self, *openers: Callable[[], Session]) -> None:
+        """Close the session and open it with the first opener that works (the error of the first
+        is raised once one of the others has opened it)."""
+        self._unsubscribe()
+        self.session.close()
+        error: BaseException | None = None
+        for opener in openers:
+            try:
+                self.session = opener()
+            except MirrorlabError as exc:
+                error = error or exc
+                continue
+            break
+        self._unsubscribe = self.session.events.subscribe(self._on_event)
+        if error is not None:
+            raise error
 
     def _watch(self, source: str, specs: list[StreamSpec]) -> None:
         for spec in specs:
@@ -180,32 +225,85 @@ class Console:
         return " · ".join(p for p in parts if p)
 
     # -- acting (these wait on devices or the disk: call them from a worker thread) ----------------
+    @property
+    def connected(self) -> list[str]:
+        """The instruments not disconnected by the operator (those that preview and record)."""
+        return [label for label in self.session.instruments if label not in self.disconnected]
+
     def preview(self) -> None:
-        """Start every instrument acquiring (and the controllers), without recording."""
-        self.session.start_acquisition()
+        """Start every connected instrument acquiring (and the controllers), without recording."""
+        self.session.start_acquisition(self.connected)
 
     def toggle_recording(self) -> bool:
-        """Start recording every instrument, or stop the running recording; return whether recording now."""
+        """Start recording every connected instrument, or stop the running recording; return whether recording now."""
         if self.session.recording:
             self.session.stop_recording()
             return False
-        self.session.start_recording()
+        self.session.start_recording(self.connected)
         return True
+
+    def disconnect(self, source: str) -> None:
+        """Stop one instrument (and the controllers bound to it) and release its device; the others go on."""
+        inst = self.session.instruments[source]
+        if self.session.recording and self.session.snapshot().instruments[source].recorded:
+            raise SessionError(f"{source} is being recorded; stop the recording (r) before disconnecting it")
+        self.session.stop_acquisition([source])
+        inst.close()
+        self.disconnected.add(source)
+        inst.set_state("stopped", f"{inst.device_name} disconnected by the operator")
+
+    def connect(self, source: str) -> None:
+        """Connect a disconnected instrument again: open, identify, apply its settings."""
+        inst = self.session.instruments[source]
+        inst.set_state("connecting")
+        try:
+            inst.reconnect()
+        except BaseException:
+            inst.close()
+            inst.set_state("stopped", f"{inst.device_name} did not connect")
+            raise
+        self.disconnected.discard(source)
+        inst.set_state("idle", f"{inst.device_name} connected")
 
     def stop(self) -> None:
         """Stop acquiring (and the recording, written to the end)."""
         self.session.stop_acquisition()
 
-    def run_steps(self, start: int = 0) -> None:
-        """Run the recipe's steps from index ``start`` on this session (until one fails or
-        :meth:`cancel`); :attr:`current_step` says which one runs."""
-        if self.recipe is None:
+    def run_steps(self, start: int = 0, recipe: Recipe | None = None) -> None:
+        """Run the steps of ``recipe`` (default: the session's own) from index ``start`` on this
+        session, until one fails or :meth:`cancel`; :attr:`current_step` says which one runs."""
+        recipe = recipe or self.recipe
+        if recipe is None:
             return
         try:
             with self.session.operation():
-                run_steps(self.session, self.recipe.steps[start:], self._step_started)
+                run_steps(self.session, recipe.steps[start:], self._step_started)
         finally:
             self.current_step = None
+
+    def analysis_recipes(self) -> list[Recipe]:
+        """The bundled analysis recipes (no instruments, nothing recorded) that can run on this
+        session, e.g. the demo's ``rssr_analysis.toml`` (reads the recipe files: call from a worker)."""
+        found = []
+        for path in sorted(BUNDLED.iterdir(), key=lambda p: p.name):
+            if path.name.endswith(".toml"):
+                try:
+                    found.append(load_recipe(Path(str(path)), [], analysis=True))
+                except MirrorlabError:  # a recipe that records: not an analysis
+                    continue
+        return found
+
+    def run_recipe(self, recipe: Recipe) -> None:
+        """Run an analysis recipe's steps on this session (see :meth:`run_steps`)."""
+        if self.session.recording:
+            raise SessionError(f"{self.session.path} is recording; stop the recording (r) before running "
+                               f"{recipe.path.name}")
+        self.progress, self.running = None, recipe.path.name
+        try:
+            with self.writable():
+                self.run_steps(0, recipe)
+        finally:
+            self.running = None
 
     def _step_started(self, step: StepPlan) -> None:
         self.progress = None
@@ -214,6 +312,18 @@ class Console:
     def cancel(self) -> None:
         """Ask the running step (or recording, or algorithm) to end cleanly; no later step runs."""
         self.session.request_stop()
+
+    def run_algorithm(self, name: str, inputs: dict[str, str], parameters: dict[str, Any]) -> ResultRef:
+        """Run a registered algorithm on datasets of the session and store its result
+        (:meth:`Session.run`); :meth:`cancel` stops it at its next progress report."""
+        if self.session.recording:
+            raise SessionError(f"{self.session.path} is recording; stop the recording (r) before running {name}")
+        self.progress, self.running = None, name
+        try:
+            with self.writable() as session:
+                return session.run(name, inputs, parameters)
+        finally:
+            self.running = None
 
     def set_parameter(self, source: str, name: str, value: Any) -> Any:
         """Send one live parameter as a set-point; returns the value applied (in its unit)."""

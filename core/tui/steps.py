@@ -9,10 +9,13 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, ProgressBar, Static
+from textual.widgets import DataTable, Header, ProgressBar, Static
+
+from .widgets import KeysFooter
 
 if TYPE_CHECKING:
     from .app import MirrorlabApp
+    from .model import Console
 
 
 def step_summary(values: dict) -> str:
@@ -33,12 +36,16 @@ class StepsScreen(Screen[None]):
 
     app: MirrorlabApp
 
+    @staticmethod
+    def unavailable(model: Console) -> str:
+        return "" if model.recipe is not None else "A session file has no recipe steps; open a recipe to run them."
+
     def compose(self) -> ComposeResult:
         yield Header()
         yield Static(id="status", markup=False)
         yield ProgressBar(id="progress", show_eta=False)
         yield DataTable(id="steps", cursor_type="row")
-        yield Footer()
+        yield KeysFooter()
 
     def on_mount(self) -> None:
         self.sub_title = "recipe steps"

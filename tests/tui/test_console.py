@@ -146,14 +146,14 @@ async def test_help_and_every_action_in_the_command_palette(loop_console: Consol
         await pilot.press("escape")
         assert not isinstance(app.screen, HelpScreen)
         titles = [c.title for c in app.get_system_commands(app.screen)]
-    keyed = {"help": "Help", "preview": "Preview", "record": "Record", "stop": "Stop", "steps": "Steps", "quit": "Quit",
-             "virtual_chain": "Virtual chain", "dexterity": "Dexterity task"}
-    assert {b.action for b in MirrorlabApp.BINDINGS} == set(keyed)
-    assert set(keyed.values()) <= set(titles) and titles.count("Quit") == 1
+    keyed = {b.description for b in MirrorlabApp.BINDINGS}  # every key's action is in the palette too
+    assert {"Help", "Preview", "Record", "Stop", "Steps", "Analysis", "Browse", "Plots", "Camera", "Virtual chain",
+            "Dexterity task", "Quit"} <= keyed
+    assert keyed <= set(titles) and titles.count("Quit") == 1
     assert {"Open sensor", "Open actuator", "Open loop"} <= set(titles)
 
 
-async def test_a_session_file_opens_read_only_for_browsing(tmp_path: Path) -> None:
+async def test_a_session_file_opens_for_browsing_and_analysis(tmp_path: Path) -> None:
     path = tmp_path / "rec.h5"
     with Session.create(path, description="browsed") as s:
         s.add_instrument("sensor", "angle_source", simulate=True)
@@ -163,10 +163,12 @@ async def test_a_session_file_opens_read_only_for_browsing(tmp_path: Path) -> No
     try:
         async with app.run_test(size=SIZE) as pilot:
             await pilot.pause()
-            assert "browsing (read-only)" in str(app.query_one("#info", Static).render())
+            assert "a analysis, b browse, g plots" in str(app.query_one("#info", Static).render())
             lines = [str(line.text) for line in app.query_one("#log").lines]
             assert any(line.startswith("sensor/angle: ") and "samples rad" in line for line in lines), lines
             await pilot.press("r")  # refused with a notice, nothing raised
             assert not console.session.recording
     finally:
         console.close()
+    with Session.open(path) as s:
+        assert s.status == "closed"  # opened writable for analysis, left as it was

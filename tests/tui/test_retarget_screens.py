@@ -38,7 +38,8 @@ async def test_both_screens_are_in_the_command_palette(app: MirrorlabApp) -> Non
         await pilot.press("escape")
         await until(pilot, lambda: not isinstance(app.screen, DexterityScreen), "back on the dashboard")
         await app.run_action("quit")  # stops the dashboard's polling before the test's app goes away
-    assert {("v", "virtual_chain"), ("d", "dexterity")} <= {(b.key, b.action) for b in MirrorlabApp.BINDINGS}
+    keys = {(b.key, b.description) for b in MirrorlabApp.BINDINGS}
+    assert {("v", "Virtual chain"), ("m", "Dexterity task")} <= keys
 
 
 async def test_virtual_chain_is_retargeted_to_the_optimum_of_each_pose(app: MirrorlabApp) -> None:
@@ -69,7 +70,7 @@ async def test_dexterity_task_area_is_the_analytic_area_of_the_motion(app: Mirro
     goal: the swept area is the 30 triangles between successive positions, 15 l² sin 3° (the slide
     sweeps none); the optimum is spec §6's (2.4995 for l = 3, scaled by l²)."""
     async with app.run_test(size=SIZE) as pilot:
-        await pilot.press("d")
+        await pilot.press("m")
         await until(pilot, lambda: isinstance(app.screen, DexterityScreen), "the task opened")
         screen = app.screen
         await pilot.press(*["down"] * 30)

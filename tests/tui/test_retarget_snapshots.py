@@ -33,7 +33,7 @@ def test_virtual_chain(app: MirrorlabApp, snap_compare) -> None:
 
 def test_dexterity_task(app: MirrorlabApp, snap_compare) -> None:
     async def moved(pilot: Pilot) -> None:
-        await pilot.press("d", *["left", "down", "down"] * 5)
+        await pilot.press("m", *["left", "down", "down"] * 5)
         screen = app.screen
         assert isinstance(screen, DexterityScreen)
         await until(pilot, lambda: screen.best is not None and screen.area_positions == len(screen.a),

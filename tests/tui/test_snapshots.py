@@ -31,3 +31,58 @@ def test_help(app: MirrorlabApp, snap_compare) -> None:
 
 def test_actuator_detail(app: MirrorlabApp, snap_compare) -> None:
     assert snap_compare(app, press=["down", "enter"], terminal_size=(80, 24))
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from tests.tui.test_screens import make_recording
+
+    return make_recording(tmp_path_factory.mktemp("snap") / "rec.h5")
+
+
+@pytest.fixture
+def file_app(recording: Path) -> MirrorlabApp:
+    console = Console.from_file(recording)
+    yield MirrorlabApp(console)
+    console.close()
+
+
+def test_analysis_form(app: MirrorlabApp, snap_compare) -> None:
+    async def choose(pilot) -> None:
+        from textual.widgets import OptionList
+
+        await pilot.press("a")
+        for _ in range(400):  # until the worker has read the analysis recipes (listed last)
+            if pilot.app.screen.recipes:
+                break
+            await pilot.pause(0.05)
+        options = pilot.app.screen.query_one("#algorithms", OptionList)
+        options.highlighted = [str(o.prompt) for o in options.options].index("derivatives")
+        await pilot.press("enter")
+        await pilot.pause()
+
+    assert snap_compare(app, run_before=choose, terminal_size=(80, 24))
+
+
+def test_plots(file_app: MirrorlabApp, snap_compare) -> None:
+    async def trajectory(pilot) -> None:
+        await pilot.press("g")
+        for _ in range(400):  # until the worker has read and drawn the first plot
+            if getattr(pilot.app.screen, "shown", None) is not None:
+                break
+            await pilot.pause(0.05)
+        await pilot.pause()
+
+    assert snap_compare(file_app, run_before=trajectory, terminal_size=(80, 24))
+
+
+def test_camera(file_app: MirrorlabApp, snap_compare) -> None:
+    async def frame(pilot) -> None:
+        await pilot.press("c")
+        for _ in range(600):  # until the worker has drawn the frame and its markers
+            if "markers" in str(pilot.app.screen.query_one("#status").render()):
+                break
+            await pilot.pause(0.05)
+        await pilot.pause()
+
+    assert snap_compare(file_app, run_before=frame, terminal_size=(80, 24))
