@@ -112,7 +112,7 @@ def served(root: Path, names: tuple[str, ...], own_process: bool) -> Iterator[di
         yield ports
     finally:
         for proc in procs:
-            proc.send_signal(signal.SIGINT)
+            proc.send_signal(signal.SIGTERM)  # SIGINT is ignored when the benchmark runs as a background job
             proc.wait(timeout=10)
 
 

@@ -35,6 +35,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -947,14 +948,21 @@ class Session:
             # Datasets are opened only now (HDF5 cannot enter SWMR mode while an object written in an
             # older format is open); read here, or in chunks by the executor's workers.
             arrays = {name: self.file[datasets[name]] if name in datasets else arrays[name] for name in inputs}
+            def digest() -> dict[str, dict[str, Any]]:
+                return {name: {"sha256": _sha256(a), "dtype": a.dtype.str, "shape": list(a.shape)}
+                        for name, a in arrays.items()}
+
+            context = RunContext(report, self._cancel)
             if self.executor is None:
                 arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
-            digests = {name: {"sha256": _sha256(a), "dtype": a.dtype.str,
-                              "shape": list(a.shape)} for name, a in arrays.items()}
+                digests = digest()
+                outcome = execute(cls, arrays, parameters or {}, context)
+            else:  # the executor's workers read the datasets: hashing them meanwhile uses this process's idle time
+                with ThreadPoolExecutor(max_workers=1) as pool:
+                    hashing = pool.submit(digest)
+                    outcome = self.executor(self, cls, arrays, parameters or {}, context)
+                    digests = hashing.result()
             sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
-            context = RunContext(report, self._cancel)
-            outcome = (execute(cls, arrays, parameters or {}, context) if self.executor is None
-                       else self.executor(self, cls, arrays, parameters or {}, context))
         group = self.file.require_group(f"results/{cls.name}")
         run_id = f"run-{len(group) + 1:04d}"
         while run_id in group:  # never overwrite

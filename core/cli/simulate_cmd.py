@@ -2,12 +2,13 @@
 
 A lab uses it to test its own client, or firmware against the documented protocol: the simulator
 speaks exactly what the instrument's driver expects, on a pseudo-terminal or a TCP port, until
-interrupted. The first line printed names the address.
+interrupted (Ctrl-C, or SIGTERM as a service manager sends). The first line printed names the address.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import threading
 import time
@@ -40,7 +41,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="settings", action="append", default=[], metavar="KEY=VALUE",
                    help="an instrument setting the simulator is made for, e.g. scene_frames=100 (repeatable)")
     p.add_argument("--for", dest="seconds", type=float, metavar="SECONDS",
-                   help="stop after SECONDS (default: until interrupted with Ctrl-C)")
+                   help="stop after SECONDS (default: until interrupted with Ctrl-C or SIGTERM)")
     p.set_defaults(func=simulate)
 
 
@@ -83,11 +84,18 @@ def simulate(args: argparse.Namespace) -> int:
         print(f"mirrorlab: serving the {cls.name} simulator ({model.kind}, seed {args.seed}, {args.clock} clock); "
               "stop with Ctrl-C", file=sys.stderr, flush=True)
         done = threading.Event()
+        # SIGTERM stops it like Ctrl-C; it also reaches a simulator started from a background job,
+        # where the shell leaves SIGINT ignored.
+        previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
         try:
             deadline = None if args.seconds is None else time.monotonic() + args.seconds
             while not done.wait(0.2 if deadline is None else max(0.0, min(0.2, deadline - time.monotonic()))):
                 if deadline is not None and time.monotonic() >= deadline:
                     break
         except KeyboardInterrupt:
+            done.set()
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+        if done.is_set():
             print("mirrorlab: simulator stopped", file=sys.stderr)
     return 0

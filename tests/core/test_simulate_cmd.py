@@ -22,8 +22,10 @@ def serve(*args: str) -> tuple[subprocess.Popen[str], str]:
     return proc, address
 
 
-@pytest.mark.parametrize("transport", ["tcp", "pty"])
-def test_a_served_simulator_answers_the_driver_until_interrupted(tmp_path: Path, transport: str) -> None:
+@pytest.mark.parametrize(("transport", "stop"), [("tcp", signal.SIGINT), ("pty", signal.SIGTERM)])
+def test_a_served_simulator_answers_the_driver_until_interrupted(tmp_path: Path, transport: str,
+                                                                 stop: signal.Signals) -> None:
+    """Served until Ctrl-C (SIGINT) or SIGTERM, either of which ends it cleanly with exit code 0."""
     where = ["--tcp", "0"] if transport == "tcp" else ["--pty", str(tmp_path / "ttyACT")]
     proc, address = serve("actuator", *where, "--seed", "3", "--clock", "fast")
     try:
@@ -35,7 +37,7 @@ def test_a_served_simulator_answers_the_driver_until_interrupted(tmp_path: Path,
         assert act.set("target", 0.25) == 0.25 and act.query("TGT?").fields == ["250000"]
         act.close()
     finally:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(stop)
         out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
     assert "serving the actuator simulator (ACTU, seed 3, fast clock)" in err and "stopped" in err
