@@ -18,6 +18,7 @@ from collections.abc import Iterator
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.virtual_lab.world import (
+    InWorld,
     Path,
     SharedWorld,
     Sphere,
@@ -36,7 +37,7 @@ NOISE_COUNTS = 1.0               # read noise, counts
 TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
 
 
-class LineTrackerModel(LineSimulator):
+class LineTrackerModel(InWorld, LineSimulator):
     """Simulated OLDT detector.
 
     Parameters
@@ -67,15 +68,6 @@ class LineTrackerModel(LineSimulator):
         super().__init__(seed)
         self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
         self.next_sample_ms = self.clock_ms
-
-    @property
-    def world(self) -> TrackingWorld:
-        """The scene (of the shared world, if any)."""
-        return self.scene.world
-
-    @world.setter
-    def world(self, world: TrackingWorld) -> None:
-        self.scene.world = world
 
     def reset(self) -> None:
         """Power-on: the detector's defaults, streams off."""

@@ -28,6 +28,7 @@ from mirrorlab.instruments.line_tracker.view import (
     optical_faults,
 )
 from mirrorlab.instruments.virtual_lab.world import (
+    InWorld,
     Path,
     SharedWorld,
     Sphere,
@@ -80,7 +81,7 @@ class Axis:
     detector: OpticalDetector = field(default_factory=OpticalDetector)
 
 
-class MirrorGimbalModel(LineSimulator):
+class MirrorGimbalModel(InWorld, LineSimulator):
     """Simulated MGIM active mirror.
 
     Parameters
@@ -120,15 +121,6 @@ class MirrorGimbalModel(LineSimulator):
             axis = self.axes[name]
             mirror = angle / axis.params.detector_ratio
             axis.state = AxisState(gear=mirror, mirror=mirror, detector_shaft=mirror)
-
-    @property
-    def world(self) -> TrackingWorld:
-        """The scene (of the shared world, if any)."""
-        return self.scene.world
-
-    @world.setter
-    def world(self, world: TrackingWorld) -> None:
-        self.scene.world = world
 
     # -- state -------------------------------------------------------------------------------------
     def reset(self) -> None:

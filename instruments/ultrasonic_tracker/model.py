@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, Delay, LineSimulator
-from mirrorlab.instruments.virtual_lab.world import Path, SharedWorld, Sphere, TrackingWorld
+from mirrorlab.instruments.virtual_lab.world import InWorld, Path, SharedWorld, Sphere, TrackingWorld
 
 from .acoustics import PITCH, speed_of_sound, wavenumber
 from .echoes import common_arrivals, echo_arrivals, gated_pressure
@@ -70,7 +70,7 @@ FAULTS: dict[str, tuple[str, ...]] = {
 }
 
 
-class UltrasonicTrackerModel(LineSimulator):
+class UltrasonicTrackerModel(InWorld, LineSimulator):
     """Simulated USDF tracker.
 
     Parameters
@@ -108,15 +108,6 @@ class UltrasonicTrackerModel(LineSimulator):
         super().__init__(seed)
         self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
         self.physics_s = self.clock_ms / 1000.0
-
-    @property
-    def world(self) -> TrackingWorld:
-        """The scene (of the shared world, if any)."""
-        return self.scene.world
-
-    @world.setter
-    def world(self, world: TrackingWorld) -> None:
-        self.scene.world = world
 
     # -- state -------------------------------------------------------------------------------------
     def reset(self) -> None:

@@ -270,6 +270,25 @@ class SharedWorld:
         return {key: np.array([r[key] for r in rows]) for key in rows[0]} if rows else {}
 
 
+class InWorld:
+    """Mixin of a simulator model that sees a :class:`SharedWorld` as ``self.scene``.
+
+    :attr:`world` is the scene now; setting it (``SIM:LOAD``) changes it for every simulator of
+    the world.
+    """
+
+    scene: SharedWorld
+
+    @property
+    def world(self) -> TrackingWorld:
+        """The scene (of the shared world, if any)."""
+        return self.scene.world
+
+    @world.setter
+    def world(self, world: TrackingWorld) -> None:
+        self.scene.world = world
+
+
 def world_truth(world: TrackingWorld, t: float, mirror: ArrayLike = (0.0, 0.0)) -> dict[str, FloatArray]:
     """Truth of ``world`` at time ``t`` (s) with the mirror at Cardan angles ``mirror`` (rad).
 
