@@ -84,18 +84,17 @@ def simulate(args: argparse.Namespace) -> int:
         print(f"mirrorlab: serving the {cls.name} simulator ({model.kind}, seed {args.seed}, {args.clock} clock); "
               "stop with Ctrl-C", file=sys.stderr, flush=True)
         done = threading.Event()
-        # SIGTERM stops it like Ctrl-C; it also reaches a simulator started from a background job,
-        # where the shell leaves SIGINT ignored.
-        previous = signal.signal(signal.SIGTERM, lambda signum, frame: done.set())
+        # Ctrl-C (SIGINT) and SIGTERM both stop it cleanly; SIGINT is handled here even where it was
+        # inherited as ignored (a simulator started from a background job), as it is sent on purpose.
+        previous = {sig: signal.signal(sig, lambda signum, frame: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
         try:
             deadline = None if args.seconds is None else time.monotonic() + args.seconds
             while not done.wait(0.2 if deadline is None else max(0.0, min(0.2, deadline - time.monotonic()))):
                 if deadline is not None and time.monotonic() >= deadline:
                     break
-        except KeyboardInterrupt:
-            done.set()
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
         if done.is_set():
             print("mirrorlab: simulator stopped", file=sys.stderr)
     return 0
