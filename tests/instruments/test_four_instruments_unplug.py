@@ -90,10 +90,14 @@ def test_an_unplugged_device_loses_only_its_own_down_time(tmp_path: Path) -> Non
         for label, (_, _, period) in DEVICES.items():
             t = times[label]
             before, after = t[t <= outage.unplugged], t[t > outage.reconnected]
-            if label == outage.label:  # its gap: from the last sample before the unplug to the first after
+            if label == outage.label:  # its gap: the longest step from the last sample before the unplug
+                # to the first after the reconnect. A sample under way at the unplug (a frame already
+                # scanned into the line's buffer) may still arrive, stamped up to one interval after it.
                 interval = period or max(np.diff(before).max(), np.diff(after).max())  # the scanner's frames
-                gap = t[t > outage.unplugged].min() - before.max()  # nothing recorded while it was away
-                assert down <= gap <= down + RESTART + 2 * interval, (label, gap, down)
+                around = t[(t >= before.max()) & (t <= after.min())]
+                gap = np.diff(around).max()
+                assert down - interval <= gap <= down + RESTART + 2 * interval, (label, gap, down)
+                assert len(around) <= 3, (label, around)  # nothing else recorded while it was away
                 if period is not None:  # on either side of it, not one sample lost
                     assert max(np.diff(before).max(), np.diff(after).max()) <= 1.5 * period, label
             elif period is not None:  # the others: continuous while it was down
