@@ -442,6 +442,21 @@ def run_recipe(recipe: Recipe, out: Path, registry: Registry | None = None,
     return out
 
 
+def check_on_session(recipe: Recipe, session: Session) -> None:
+    """Raise :class:`ValidationError` if a step of the analysis ``recipe`` would find what it
+    creates (a calibration group, a run label) already in ``session``: checked before the first
+    step runs, so that a second analysis of one file stops before appending anything."""
+    problems = [problem for step in recipe.steps
+                for problem in step.cls.session_problems(session, step.values, f"steps.{step.index}")]
+    for problem in problems:
+        problem.file = str(recipe.path)
+    if problems:
+        problems.append(Problem("session", f"{session.path.name} holds the results of an earlier analysis; run "
+                                           "the recipe on a fresh copy of the recording (mirrorlab batch copies "
+                                           "its inputs to --out), or give each key above a new name with --set"))
+        raise ValidationError(problems)
+
+
 def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,
                  on_session: Callable[[Session], None] | None = None, executor: Any = None) -> Path:
     """Run an analysis recipe's steps on an existing session file, appending their results; return its path.
@@ -460,6 +475,7 @@ def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,
         session.events.emit("info", "recipe", "analysis", f"analysis recipe {recipe.path.name}",
                             path=str(recipe.path), recipe_hash=f"sha256:{digest}", overrides=recipe.overrides,
                             executor=getattr(executor, "provenance", None))
+        check_on_session(recipe, session)
         with session.operation():
             for step in recipe.steps:
                 session.events.emit("info", "recipe", "step", f"step {step.index}: {step.action}")

@@ -35,7 +35,6 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -49,6 +48,7 @@ from .clock import SessionClock, parse_utc, utc_now_iso
 from .controller_runtime import ControllerRunner
 from .controllers import Controller
 from .devices import Instrument, SerialInstrument, SimulatedWorld, SimulatorServer
+from .digests import read_hashed
 from .errors import Problem, SessionError, SessionExistsError, ValidationError
 from .events import EventBus
 from .params import Parameter, ParameterSet, to_jsonable
@@ -69,28 +69,6 @@ SIMULATOR_OPTIONS = ParameterSet(
 )
 
 _PACKAGES = ("numpy", "scipy", "h5py", "pluggy", "pyserial", "opencv-python-headless", "textual", "rich")
-
-
-#: Bytes of a dataset read at a time to hash it: memory stays bounded for a recording of any length.
-HASH_BLOCK_BYTES = 64 * 2**20
-
-
-def _sha256(array: np.ndarray | h5py.Dataset) -> str:
-    """Hex SHA-256 of an array's values in C order (its dtype and shape are stored beside it).
-
-    A dataset is read in blocks of whole first-axis rows (about :data:`HASH_BLOCK_BYTES`); the
-    digest is that of the whole array.
-
-    >>> _sha256(np.zeros(0))
-    'e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855'
-    """
-    if not isinstance(array, h5py.Dataset) or array.ndim == 0 or array.size == 0:
-        return hashlib.sha256(np.ascontiguousarray(array[()]).data).hexdigest()  # the buffer itself: no copy
-    digest = hashlib.sha256()
-    rows = max(1, HASH_BLOCK_BYTES // max(1, array.dtype.itemsize * int(np.prod(array.shape[1:]))))
-    for start in range(0, array.shape[0], rows):
-        digest.update(np.ascontiguousarray(array[start:start + rows]).data)
-    return digest.hexdigest()
 
 
 def _unit(declared: str, units: Mapping[str, str]) -> str:
@@ -174,7 +152,8 @@ class Session:
         self._record_start = 0.0
         #: Runs algorithms for :meth:`run` instead of this process (see :mod:`mirrorlab.core.batch`):
         #: called as ``executor(session, cls, inputs, params, context)`` with inputs as h5py datasets
-        #: or arrays, returns a ``RunOutcome``; its ``provenance`` dict is stored as ``@executor``.
+        #: or arrays, returns the ``RunOutcome`` and each input's digest entry
+        #: (:func:`~mirrorlab.core.digests.input_entry`); its ``provenance`` dict is stored as ``@executor``.
         self.executor: Any = None
         for message in registry.notify("mirrorlab_session_opened", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
@@ -948,20 +927,12 @@ class Session:
             # Datasets are opened only now (HDF5 cannot enter SWMR mode while an object written in an
             # older format is open); read here, or in chunks by the executor's workers.
             arrays = {name: self.file[datasets[name]] if name in datasets else arrays[name] for name in inputs}
-            def digest() -> dict[str, dict[str, Any]]:
-                return {name: {"sha256": _sha256(a), "dtype": a.dtype.str, "shape": list(a.shape)}
-                        for name, a in arrays.items()}
-
             context = RunContext(report, self._cancel)
             if self.executor is None:
-                arrays = {k: v[()] if isinstance(v, h5py.Dataset) else v for k, v in arrays.items()}
-                digests = digest()
+                arrays, digests = read_hashed(arrays)
                 outcome = execute(cls, arrays, parameters or {}, context)
-            else:  # the executor's workers read the datasets: hashing them meanwhile uses this process's idle time
-                with ThreadPoolExecutor(max_workers=1) as pool:
-                    hashing = pool.submit(digest)
-                    outcome = self.executor(self, cls, arrays, parameters or {}, context)
-                    digests = hashing.result()
+            else:  # the executor hashes the inputs as it reads them
+                outcome, digests = self.executor(self, cls, arrays, parameters or {}, context)
             sources.update({name: "sha256:" + digests[name]["sha256"] for name in arrays if name not in sources})
         group = self.file.require_group(f"results/{cls.name}")
         run_id = f"run-{len(group) + 1:04d}"

@@ -59,6 +59,17 @@ class Step(ABC):
         values, problems = cls.parameters.problems(table, where, file)
         return values, problems + instrument_problems(values, cls.instrument_keys, where, file, instruments)
 
+    @classmethod
+    def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
+        """What in an existing ``session`` would make this step fail before it stores anything
+        (a group or run label it would create is there already).
+
+        An analysis recipe run on an existing session checks every step with this before the first
+        one runs, so that a second run of the recipe stops at once, naming the key, instead of
+        after some of its results were appended. The default finds nothing.
+        """
+        return []
+
     @abstractmethod
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         """Run the step on an open, writable session."""
@@ -131,6 +142,12 @@ class Run(Step):
         if reason:
             problems.append(Problem(f"{where}.as", reason, file))
         return values, problems
+
+    @classmethod
+    def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
+        taken = [r for r in session.results() if values["as"] and r.label == values["as"] and r.status == "ok"]
+        return [Problem(f"{where}.as", f"run label {values['as']!r} already names {taken[0].path} in "
+                                       f"{session.path.name}; labels are unique in a session")] if taken else []
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         ref = session.run(values["algorithm"], values["inputs"], values["parameters"], label=values["as"] or None)

@@ -6,17 +6,22 @@ without continuity) into chunks run as Dask tasks; each task reads its frames fr
 file itself, read-only while the file is shared in SWMR mode, and the outputs are merged in frame
 order (:func:`~mirrorlab.core.batch.chunks.merge_frames`), equal bit for bit to one run on all
 frames. Everything else (tracking, anything sequential) runs in this process as before.
+
+An executor also returns each input's digest entry for the run's provenance
+(:mod:`mirrorlab.core.digests`). The workers of a chunked run hash the blocks of the frames they
+read, so this process never reads a recording that its workers read.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import h5py
-import numpy as np
 
 from ..algorithms import Algorithm, RunContext, RunOutcome, execute
+from ..digests import block_digests, block_rows, combine, input_entry, read_hashed
 from ..store import files
 from .chunks import chunk_bounds, merge_frames
 
@@ -29,9 +34,8 @@ if TYPE_CHECKING:
 CHUNK_FRAMES = 1000
 
 
-def read_inputs(inputs: Mapping[str, Any]) -> dict[str, np.ndarray]:
-    """Datasets read whole; arrays as they are."""
-    return {name: value[()] if isinstance(value, h5py.Dataset) else value for name, value in inputs.items()}
+#: An input's digest entry (:func:`~mirrorlab.core.digests.input_entry`), by input name.
+Digests = dict[str, dict[str, Any]]
 
 
 class Executor:
@@ -41,18 +45,25 @@ class Executor:
         self.provenance = dict(provenance)
 
     def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
-                 params: Mapping[str, Any], context: RunContext) -> RunOutcome:
-        return execute(cls, read_inputs(inputs), params, context)
+                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, Digests]:
+        arrays, digests = read_hashed(inputs)
+        return execute(cls, arrays, params, context), digests
 
 
 def run_chunk(path: str, cls: type[Algorithm], datasets: Mapping[str, str], arrays: Mapping[str, Any],
-              params: Mapping[str, Any], start: int, stop: int) -> RunOutcome:
+              params: Mapping[str, Any], start: int, stop: int,
+              hashed: Mapping[str, int]) -> tuple[RunOutcome, dict[str, list[bytes]]]:
     """One Dask task: frames ``[start, stop)`` of ``datasets`` (paths in the session file at ``path``),
-    read here read-only, plus ``arrays``, through :func:`~mirrorlab.core.algorithms.execute`."""
+    read here read-only, plus ``arrays``, through :func:`~mirrorlab.core.algorithms.execute`.
+
+    Also returns the block digests of the frames of each dataset in ``hashed`` (name -> rows per
+    block; ``start`` is on a block boundary), hashed while they are in memory here.
+    """
     f, _ = files.open_readonly(path)
     with f, files.reading(path):
         frames = {name: f[dataset][start:stop] for name, dataset in datasets.items()}
-    return execute(cls, {**arrays, **frames}, params)
+    blocks = {name: block_digests(frames[name], rows) for name, rows in hashed.items()}
+    return execute(cls, {**arrays, **frames}, params), blocks
 
 
 class ChunkedExecutor(Executor):
@@ -72,7 +83,7 @@ class ChunkedExecutor(Executor):
         self.chunked: list[tuple[str, int]] = []
 
     def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
-                 params: Mapping[str, Any], context: RunContext) -> RunOutcome:
+                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, Digests]:
         values = cls.parameters.validate(dict(params), where=f"{cls.name}.parameters")
         split = [n for n in cls.frame_wise(values) if isinstance(inputs.get(n), h5py.Dataset)]
         lengths = {inputs[n].shape[0] if inputs[n].ndim else 0 for n in split}
@@ -80,25 +91,35 @@ class ChunkedExecutor(Executor):
         if not split or frames <= self.chunk_frames:
             return super().__call__(session, cls, inputs, values, context)
         datasets = {n: inputs[n].name for n in split}
-        arrays = read_inputs({n: v for n, v in inputs.items() if n not in split})
+        arrays, digests = read_hashed({n: v for n, v in inputs.items() if n not in split})
+        # Chunks that start on block boundaries are hashed by the workers that read them (image
+        # rows are blocks of their own); any other frame input is hashed here meanwhile.
+        rows = {n: block_rows(inputs[n].dtype, inputs[n].shape) for n in split}
+        hashed = {n: r for n, r in rows.items() if self.chunk_frames % r == 0}
         bounds = chunk_bounds(frames, self.chunk_frames)
         from distributed import as_completed
 
-        with session.shared_for_reading():
+        with session.shared_for_reading(), ThreadPoolExecutor(max_workers=1) as pool:
+            here = pool.submit(lambda: {n: input_entry(inputs[n]) for n in split if n not in hashed})
             futures = {self.client.submit(run_chunk, str(session.path), cls, datasets, arrays, values, a, b,
-                                          pure=False): (a, b) for a, b in bounds}
-            done = 0
-            for future in as_completed(futures):
+                                          hashed, pure=False): (a, b) for a, b in bounds}
+            done, results = 0, {}
+            # each chunk's outputs are fetched when it ends, while the others still run
+            for future, result in as_completed(futures, with_results=True):
                 a, b = futures[future]
+                results[a] = result
                 done += b - a
                 context.progress(done, frames, f"{cls.name}: frames in chunks")
-            parts = [future.result() for future in futures]
-        for (a, b), part in zip(bounds, parts):
+            parts = [results[a] for a, _ in bounds]
+            digests.update(here.result())
+        digests.update({n: input_entry(inputs[n], combine(d for _, blocks in parts for d in blocks[n]))
+                        for n in hashed})
+        for (a, b), (part, _) in zip(bounds, parts):
             if part.status != "ok":
-                return RunOutcome({}, values, "failed", f"frames {a}-{b - 1}: {part.error}", part.traceback)
+                return RunOutcome({}, values, "failed", f"frames {a}-{b - 1}: {part.error}", part.traceback), digests
         try:
-            merged = merge_frames([p.outputs for p in parts], cls.frame_fill)
+            merged = merge_frames([p.outputs for p, _ in parts], cls.frame_fill)
         except ValueError as exc:
-            return RunOutcome({}, values, "failed", str(exc))
+            return RunOutcome({}, values, "failed", str(exc)), digests
         self.chunked.append((cls.name, len(bounds)))
-        return RunOutcome(merged, values, "ok")
+        return RunOutcome(merged, values, "ok"), digests

@@ -27,7 +27,7 @@ import numpy as np
 from ..algorithms import ResultRef
 from ..errors import MirrorlabError, SessionError
 from ..events import Event
-from ..recipes import Recipe, StepPlan, add_devices, load_recipe, recipe_record, run_steps
+from ..recipes import Recipe, StepPlan, add_devices, check_on_session, load_recipe, recipe_record, run_steps
 from ..session import Session
 from ..snapshot import SessionSnapshot
 from ..streams import StreamSpec, Subscription
@@ -300,7 +300,8 @@ class Console:
                                f"{recipe.path.name}")
         self.progress, self.running = None, recipe.path.name
         try:
-            with self.writable():
+            with self.writable() as session:
+                check_on_session(recipe, session)
                 self.run_steps(0, recipe)
         finally:
             self.running = None

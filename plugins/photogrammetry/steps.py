@@ -73,6 +73,13 @@ class Calibrate(Step):
         values.update(inputs=inputs, parameters=typed)
         return values, problems + more
 
+    @classmethod
+    def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
+        if f"calibration/{values['camera']}" not in session.file:
+            return []
+        return [Problem(f"{where}.camera", f"/calibration/{values['camera']} already exists in {session.path.name}; "
+                                           "calibration groups are never overwritten")]
+
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         require_new_camera(session, values["camera"])
         inputs: dict[str, Any] = dict(values["inputs"])

@@ -52,6 +52,21 @@ def _datasets(path: Path) -> dict[str, tuple[str, tuple[int, ...], bytes]]:
     return found
 
 
+def _worker_setup() -> tuple[int, str | None, bool]:
+    import os
+
+    import cv2
+    import dask
+
+    return cv2.getNumThreads(), os.environ.get("MALLOC_TRIM_THRESHOLD_"), dask.config.get("distributed.worker.profile.enabled")
+
+
+def _input_digests(path: Path) -> list[str]:
+    """``@input_sha256`` of every result run, in order."""
+    with Session.open(path) as s:
+        return [s.result(r).attrs["input_sha256"] for r in s.results()]
+
+
 def _serial(source: Path, target: Path, overrides: list[str] = ()) -> Path:
     shutil.copyfile(source, target)
     return run_analysis(load_recipe(ANALYSIS, overrides, analysis=True), target)
@@ -100,9 +115,14 @@ def test_chunked_frames_equal_serial(sessions: list[Path], tmp_path: Path) -> No
     with dask_client(workers=2) as client:
         executor = ChunkedExecutor(client, {"scheduler": client.scheduler.address, "workers": 2}, chunk_frames=5)
         run_analysis(recipe, chunked, executor=executor)
+        # each worker: OpenCV on one thread, glibc's own malloc trimming, Dask's stack sampling off
+        assert set(client.run(_worker_setup).values()) == {(1, None, False)}
     # the grid's one calibration frame fits a chunk; the 12 experiment frames make 3
     assert executor.chunked == [("detect_markers", 3), ("pair_mirror", 3)]
     assert _datasets(chunked) == _datasets(serial)
+    # the input digests too: the workers hashed the frames they read (image rows are blocks of their
+    # own), this process the pairing's points (blocks of many rows, not cut at 5-frame chunks)
+    assert _input_digests(chunked) == _input_digests(serial)
     with Session.open(chunked) as s:
         assert s.status == "closed" and all(r.status == "ok" for r in s.results())
         assert '"chunk_frames": 5' in s.result("/results/detect_markers/run-0002").attrs["executor"]

@@ -8,7 +8,7 @@ import importlib
 import pytest
 
 MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
-           "mirrorlab.core.batch.chunks", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
+           "mirrorlab.core.batch.chunks", "mirrorlab.core.digests", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
            "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming"]
 
 

@@ -44,7 +44,15 @@ def session_file(tmp_path: Path, registry) -> Path:
 
 
 def sha256(a: np.ndarray) -> str:
-    return hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()
+    """The documented input digest of a 1-D float64 array: SHA-256 of the SHA-256 of each block of
+    8192 values (64 KiB) in C order."""
+    data = np.ascontiguousarray(a).tobytes()
+    blocks = [data[i:i + 65536] for i in range(0, len(data), 65536)]
+    return hashlib.sha256(b"".join(hashlib.sha256(b).digest() for b in blocks)).hexdigest()
+
+
+def entry(a: np.ndarray) -> dict[str, Any]:
+    return {"sha256": sha256(a), "block_rows": 8192, "dtype": "<f8", "shape": list(a.shape)}
 
 
 def test_outputs_carry_declared_unit_and_description(session_file: Path, registry) -> None:
@@ -58,7 +66,7 @@ def test_outputs_carry_declared_unit_and_description(session_file: Path, registr
         assert (run["rate"].attrs["unit"], run["rate"].attrs["description"]) == ("K/s", "() drift per second")
         assert run["offset"].attrs["unit"] == "K" and run["residual_rms"].attrs["unit"] == "K"
         digests = json.loads(run.attrs["input_sha256"])
-    assert digests["values"] == {"sha256": sha256(KELVIN), "dtype": "<f8", "shape": [101]}
+    assert digests["values"] == entry(KELVIN)
     assert digests["time"]["sha256"] == sha256(T)
 
 
@@ -69,21 +77,19 @@ def test_array_inputs_are_stored_by_their_sha256(session_file: Path, registry) -
         r = s.result(ref)
         unit = s.file[ref.path]["rate"].attrs["unit"]
     assert r.attrs["inputs"] == {"time": "sha256:" + sha256(T), "values": "sha256:" + sha256(KELVIN)}
-    assert r.attrs["input_sha256"]["values"] == {"sha256": sha256(KELVIN), "dtype": "<f8", "shape": [101]}
+    assert r.attrs["input_sha256"]["values"] == entry(KELVIN)
     assert r.outputs["rate"] == pytest.approx(0.005)
     assert unit == "{values}/s"  # an array has no unit: the declared placeholder says whose unit it is
 
 
-def test_dataset_inputs_hashed_in_blocks(session_file: Path, registry, monkeypatch: pytest.MonkeyPatch) -> None:
-    """With an executor the inputs stay datasets: hashed 3 rows at a time, with the whole array's digest."""
-    from mirrorlab.core import session as session_module
+def test_an_executor_stores_the_same_digests(session_file: Path, registry) -> None:
+    """An executor hashes the inputs itself: the digests are those of a run without one."""
     from mirrorlab.core.batch.executors import Executor
 
-    monkeypatch.setattr(session_module, "HASH_BLOCK_BYTES", 24)  # 3 float64 rows
     with Session.open(session_file, writable=True, registry=registry) as s:
         s.executor = Executor({"engine": "test"})
         r = s.result(s.run("acme_drift_rate", INPUTS))
-    assert r.attrs["input_sha256"]["values"] == {"sha256": sha256(KELVIN), "dtype": "<f8", "shape": [101]}
+    assert r.attrs["input_sha256"]["values"] == entry(KELVIN)
     assert r.attrs["input_sha256"]["time"]["sha256"] == sha256(T)
 
 
@@ -229,6 +235,23 @@ def test_recipe_labels_chain_runs_and_are_checked_at_load(tmp_path: Path, acme_s
     check = run_cli("run", str(recipe), "--check", sites=(acme_site,))
     assert check.returncode == 2 and "steps.1.inputs.values: '@rough/velocity' names the run labelled 'rough' of " \
                                      "steps.2, which has not run yet" in check.stderr, check.stderr
+
+
+def test_an_analysis_whose_labels_are_taken_stops_before_running(tmp_path: Path, acme_site: Path) -> None:
+    """The run steps of the label recipe again on its session: the labels are taken, so nothing runs."""
+    recipe, out = tmp_path / "labels.toml", tmp_path / "labels.h5"
+    recipe.write_text(LABEL_RECIPE)
+    assert run_cli("run", str(recipe), "--out", str(out), "--no-progress", sites=(acme_site,)).returncode == 0
+    analysis = tmp_path / "again.toml"
+    analysis.write_text(LABEL_RECIPE[LABEL_RECIPE.index('[[steps]]\naction = "run"'):])
+    with h5py.File(out, "r") as f:
+        before = sorted(f["results/derivatives"]), sorted(f["results/filter"])
+    proc = run_cli("run", str(analysis), "--session", str(out), "--no-progress", sites=(acme_site,))
+    assert proc.returncode == 2, proc.stderr
+    assert "steps.0.as: run label 'smooth' already names /results/derivatives/run-0001 in labels.h5" in proc.stderr
+    assert "steps.1.as: run label 'rough' already names /results/derivatives/run-0002" in proc.stderr
+    with h5py.File(out, "r") as f:
+        assert (sorted(f["results/derivatives"]), sorted(f["results/filter"])) == before
 
 
 def test_log_and_streams_share_one_time_axis_across_reopenings(tmp_path: Path, registry) -> None:

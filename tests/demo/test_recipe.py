@@ -136,3 +136,27 @@ def test_figures_written(short_run: tuple[Path, str]) -> None:
         png = folder / name
         assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(png) in stdout
+
+
+def test_a_second_analysis_stops_before_appending_anything(short_run: tuple[Path, str], tmp_path: Path) -> None:
+    """The analysis recipe again on the demo's session: its calibration group is taken, so it stops at
+    once (exit 2) naming the key and what to do, and the file gains nothing (it used to stop at the
+    calibration after two new runs)."""
+    import shutil
+
+    out = shutil.copyfile(short_run[0], tmp_path / "again.h5")
+
+    def runs() -> list[str]:
+        with h5py.File(out, "r") as f:
+            found: list[str] = []
+            f["results"].visit(found.append)
+            return sorted(found + list(f["calibration"]))
+
+    before = runs()
+    proc = run_cli("run", str(ANALYSIS), "--session", str(out), "--no-progress")
+    assert proc.returncode == 2, proc.stderr + proc.stdout
+    assert "steps.3.camera: /calibration/cam already exists" in proc.stderr
+    assert "fresh copy of the recording" in proc.stderr
+    assert runs() == before
+    with h5py.File(out, "r") as f:
+        assert f.attrs["status"] == "closed"
