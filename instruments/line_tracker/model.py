@@ -18,7 +18,6 @@ from collections.abc import Iterator
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.virtual_lab.world import (
-    InWorld,
     Path,
     SharedWorld,
     Sphere,
@@ -28,8 +27,9 @@ from mirrorlab.instruments.virtual_lab.world import (
 )
 
 from .detector import OpticalDetector
+from .scanned_lines import ScannedLines
 from .sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
-from .view import OPTICAL_FAULTS, SIGNAL_GAIN, check_optical_fault, detector_projection, optical_faults
+from .view import OPTICAL_FAULTS, SIGNAL_GAIN, detector_projection, optical_faults
 
 Lines = Iterator[str]
 BLUR_PX = 1.5                    # deliberate defocus (§3.2), px
@@ -37,7 +37,7 @@ NOISE_COUNTS = 1.0               # read noise, counts
 TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
 
 
-class LineTrackerModel(InWorld, LineSimulator):
+class LineTrackerModel(ScannedLines, LineSimulator):
     """Simulated OLDT detector.
 
     Parameters
@@ -85,27 +85,8 @@ class LineTrackerModel(InWorld, LineSimulator):
         if hasattr(self, "detector"):
             self.detector.streaming = on
 
-    def stream_lines(self) -> list[str]:
-        lines, self.pending = self.pending, []
-        return lines
-
-    def next_due_ms(self) -> float | None:
-        """The next detector scan (device ms): its sample line leaves as soon as it is taken."""
-        return self.next_sample_ms
-
-    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
-        yield from super().cmd_SIM_SEED(args)
-        self.np_rng = np.random.default_rng(self.seed)
-
     def fault_names(self) -> tuple[str, ...]:
         return tuple(OPTICAL_FAULTS)
-
-    def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
-        if args and args[0].upper() in OPTICAL_FAULTS:
-            problem = check_optical_fault(args[0].upper(), args[1:])
-            if problem:
-                raise CommandError(*problem)
-        yield from super().cmd_SIM_FAULT(args)
 
     # -- simulation --------------------------------------------------------------------------------
     def handle(self, line: str) -> Lines:

@@ -19,16 +19,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.line_tracker.detector import OpticalDetector
+from mirrorlab.instruments.line_tracker.scanned_lines import ScannedLines
 from mirrorlab.instruments.line_tracker.sensor import video_signal
 from mirrorlab.instruments.line_tracker.view import (
     OPTICAL_FAULTS,
     SIGNAL_GAIN,
-    check_optical_fault,
     detector_projection,
     optical_faults,
 )
 from mirrorlab.instruments.virtual_lab.world import (
-    InWorld,
     Path,
     SharedWorld,
     Sphere,
@@ -81,7 +80,7 @@ class Axis:
     detector: OpticalDetector = field(default_factory=OpticalDetector)
 
 
-class MirrorGimbalModel(InWorld, LineSimulator):
+class MirrorGimbalModel(ScannedLines, LineSimulator):
     """Simulated MGIM active mirror.
 
     Parameters
@@ -148,28 +147,12 @@ class MirrorGimbalModel(InWorld, LineSimulator):
         modes = {a.mode for a in self.axes.values()}
         return "TRACK" if "TRACK" in modes else ("MOVING" if "POS" in modes else "IDLE")
 
-    def stream_lines(self) -> list[str]:
-        lines, self.pending = self.pending, []
-        return lines
-
-    def next_due_ms(self) -> float | None:
-        """The next detector scan (device ms): its sample line leaves as soon as it is taken."""
-        return self.next_sample_ms
-
-    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
-        yield from super().cmd_SIM_SEED(args)
-        self.np_rng = np.random.default_rng(self.seed)
-
     # -- faults ------------------------------------------------------------------------------------
     def fault_names(self) -> tuple[str, ...]:
         return tuple(FAULTS)
 
     def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
-        if args and args[0].upper() in OPTICAL_FAULTS:
-            problem = check_optical_fault(args[0].upper(), args[1:])
-            if problem:
-                raise CommandError(*problem)
-        elif args and args[0].upper() in FAULTS:
+        if args and args[0].upper() in FAULTS and args[0].upper() not in OPTICAL_FAULTS:  # optical: ScannedLines
             name = args[0].upper()
             names, per_axis = FAULTS[name]
             if len(args) - 1 != len(names):
