@@ -82,6 +82,18 @@ class ControllerContext:
         """
         return self._runner.set(role, parameter, value, sample_time)
 
+    def send(self, role: str, parameter: str, value: Any, sample_time: float | None = None) -> None:
+        """Like :meth:`set`, but return at once: a sender thread of the controller sends it.
+
+        For a loop whose inputs come faster than the device acknowledges: only the newest value
+        of each ``role.parameter`` waits to be sent, and one still waiting when a newer one comes
+        is dropped (counted as *superseded* in :meth:`Session.snapshot`); what was sent and
+        acknowledged is recorded as with :meth:`set`, with its latency. A device error is
+        reported as a ``setpoint_failed`` warning; the next value is sent all the same. Values
+        still waiting when the controller stops are not sent.
+        """
+        self._runner.send(role, parameter, value, sample_time)
+
     def emit(self, stream: str, times: Any, values: Any) -> None:
         """Publish samples of a stream the controller declared in :meth:`Controller.streams`."""
         self._runner.emitter(stream, times, values)
@@ -127,6 +139,11 @@ class ControllerRunner:
         self._latency_lock = threading.Lock()  # appended by the loop, read by snapshot()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self.commands_superseded = 0
+        # send(): the newest value per (role, parameter) not yet sent, and the thread that sends them
+        self._outbox: dict[tuple[str, str], tuple[Any, float | None]] = {}
+        self._outbox_ready = threading.Condition()
+        self._sender: threading.Thread | None = None
 
     # -- declarations ---------------------------------------------------------------------------
     def streams(self) -> list[StreamSpec]:
@@ -163,6 +180,12 @@ class ControllerRunner:
                 self.report("error", "stop_timeout", f"controller {self.label!r} did not stop within {timeout:g} s "
                             "(its on_block does not return); the session goes on without it")
         self._thread = None
+        with self._outbox_ready:
+            self._outbox.clear()  # not sent: the instruments keep the last acknowledged value
+            self._outbox_ready.notify()
+        if self._sender is not None:  # ends after the command it may be waiting for
+            self._sender.join(timeout)
+            self._sender = None
         if self.state == "running":
             self._set_state("stopped")
 
@@ -206,12 +229,46 @@ class ControllerRunner:
         self._set_state("failed")
 
     # -- commands -------------------------------------------------------------------------------
-    def set(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
-        declared = self.controller.commanded().get(role, ())
-        if parameter not in declared:
+    def _check_declared(self, role: str, parameter: str) -> None:
+        if parameter not in self.controller.commanded().get(role, ()):
             known = [f"{r}.{n}" for r, names in self.controller.commanded().items() for n in names]
             raise MirrorlabError(f"controller {self.label!r} did not declare {role}.{parameter} in `commands` "
                                  f"(declared: {', '.join(known) or 'none'})")
+
+    def send(self, role: str, parameter: str, value: Any, sample_time: float | None) -> None:
+        self._check_declared(role, parameter)
+        with self._outbox_ready:
+            if self._outbox.pop((role, parameter), None) is not None:
+                self.commands_superseded += 1
+            self._outbox[(role, parameter)] = (value, sample_time)  # last in the dict: sent after older ones
+            self._outbox_ready.notify()
+            if self._sender is None:
+                self._sender = threading.Thread(target=self._send_loop, name=f"controller {self.label} sender",
+                                                daemon=True)
+                self._sender.start()
+
+    def _send_loop(self) -> None:
+        while True:
+            with self._outbox_ready:
+                while not self._outbox and not self._stop.is_set():
+                    self._outbox_ready.wait()
+                if self._stop.is_set():
+                    return
+                key = next(iter(self._outbox))  # the oldest waiting
+                value, sample_time = self._outbox.pop(key)
+            try:
+                self._apply(*key, value, sample_time)
+            except Exception as exc:  # a device error is already reported; anything else is, here
+                if not isinstance(exc, DeviceError):
+                    self.commands_failed += 1
+                    self.report("warning", "setpoint_failed", f"controller {self.label!r}: {key[0]}.{key[1]} = "
+                                f"{value}: {type(exc).__name__}: {exc}")
+
+    def set(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
+        self._check_declared(role, parameter)
+        return self._apply(role, parameter, value, sample_time)
+
+    def _apply(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
         inst = self.instruments[role]
         try:
             applied = inst.set(parameter, value)

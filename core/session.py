@@ -822,7 +822,8 @@ class Session:
                 "" if inst.failed is None else str(inst.failed))
         controllers = {
             label: ControllerSnapshot(label, r.controller.name, r.state, r.commands_sent, r.commands_failed,
-                                      r.latency_stats(), "" if r.error is None else str(r.error))
+                                      r.latency_stats(), "" if r.error is None else str(r.error),
+                                      r.commands_superseded)
             for label, r in list(self.controllers.items())}
         last = recorder or self._last_recorder
         queue = self.router.recorder_queue

@@ -57,7 +57,9 @@ class InstrumentSnapshot:
 @dataclass(frozen=True)
 class ControllerSnapshot:
     """One controller: ``state`` (``idle``, ``running``, ``failed``, ``stopped``), commands sent and
-    failed, latency statistics (s) of its recent set-points, and why it failed (``""``)."""
+    failed, latency statistics (s) of its recent set-points, and why it failed (``""``);
+    ``superseded_commands``: values given to ``ctx.send`` that a newer one replaced before they
+    were sent."""
 
     label: str
     plugin: str
@@ -66,6 +68,7 @@ class ControllerSnapshot:
     failed_commands: int
     latency: LatencyStats | None
     error: str
+    superseded_commands: int = 0
 
 
 @dataclass(frozen=True)

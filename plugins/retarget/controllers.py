@@ -73,6 +73,10 @@ class RetargetController(Controller):
         Parameter("actuate", str, "", help="output angles to command, comma-separated indices, e.g. '3' "
                                            "(instrument roles q3...)"),
         Parameter("parameter", str, "target", help="the live parameter of each actuated instrument"),
+        Parameter("wait", bool, True,
+                  help="true: each set-point is acknowledged before the next frame is computed (every frame "
+                       "reaches the actuators); false: set-points leave from a sender thread, a newer one "
+                       "replacing one not yet sent (real time: the filter never waits for an actuator)"),
     )
     inputs = {"input": "joint positions (n + 1, 3) mm per sample, or the virtual input chain's joint angles, rad"}
     latest_only = False
@@ -174,8 +178,9 @@ class RetargetController(Controller):
         ctx.emit("compute_latency", [t], [latency])
         ctx.emit("missed", [t], [self.missed])
         if np.isfinite(q).all():
+            command = ctx.set if self.settings["wait"] else ctx.send
             for k in self.actuated:
-                ctx.set(f"q{k}", self.settings["parameter"], math.remainder(float(q[k]), 2 * math.pi), sample_time=t)
+                command(f"q{k}", self.settings["parameter"], math.remainder(float(q[k]), 2 * math.pi), sample_time=t)
 
     def _close(self) -> None:
         if getattr(self, "compute", None) is not None:

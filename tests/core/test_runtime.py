@@ -271,3 +271,49 @@ def test_controller_bindings_are_checked_when_added(tmp_path: Path) -> None:
         assert "controllers.c.instruments.output: actuator 'act' has no live-settable speed" in text
         assert "controllers.c.instruments.extra: follow commands no 'extra'" in text
         assert not s.controllers and "controllers/c" not in s.file
+
+
+class Bursts(Controller):
+    """Sends five set-points per input sample without waiting, 200 in all, then nothing."""
+
+    name = "bursts"
+    version = "1.0.0"
+    description = "test controller that sends faster than the actuator acknowledges"
+    inputs = {"input": "any scalar stream"}
+    commands = {"output": ("target",)}
+    GIVEN = 200
+
+    def setup(self, ctx: ControllerContext) -> None:
+        self.given: list[float] = []
+
+    def on_block(self, role: str, block: Block, ctx: ControllerContext) -> None:
+        for t in block.times.tolist():
+            for _ in range(5):
+                if len(self.given) < self.GIVEN:
+                    self.given.append(1e-3 * (len(self.given) + 1))
+                    ctx.send("output", "target", self.given[-1], sample_time=t)
+
+
+def test_send_keeps_the_newest_setpoint_and_records_what_was_acknowledged(tmp_path: Path) -> None:
+    with Session.create(tmp_path / "s.h5") as s:
+        s.add_instrument("sensor", "angle_source", simulate=True, settings={"rate": 100})
+        s.add_instrument("act", "actuator", simulate=True)
+        runner = s.add_controller("c", Bursts, inputs={"input": "sensor/angle"}, instruments={"output": "act"})
+        s.start_recording()
+
+        def accounted() -> bool:
+            snap = s.snapshot().controllers["c"]
+            return snap.commands + snap.superseded_commands == Bursts.GIVEN
+
+        wait_for(accounted, "every value sent or superseded")
+        snap = s.snapshot().controllers["c"]
+        s.stop_acquisition()
+        given = runner.controller.given
+        sent = s.file["controllers/c/output.target/data"][()]
+        assert snap.superseded_commands > 0 and snap.failed_commands == 0, snap
+        assert len(sent) == snap.commands and s.file["controllers/c/latency/data"].shape == sent.shape
+        # what reached the actuator is the given values in order, some skipped, the last one always
+        positions = [int(np.argmin(np.abs(np.asarray(given) - v))) for v in sent]
+        assert np.allclose(np.asarray(given)[positions], sent, atol=1e-9, rtol=0)
+        assert positions == sorted(set(positions)) and positions[-1] == len(given) - 1
+        assert s.instruments["act"].query("TGT?").field(0, "µrad", int) == round(given[-1] * 1e6)
