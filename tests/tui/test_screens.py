@@ -17,6 +17,7 @@ from mirrorlab.core.tui.app import SCREENS, MirrorlabApp
 from mirrorlab.core.tui.browser import BrowserScreen
 from mirrorlab.core.tui.camera import CameraScreen
 from mirrorlab.core.tui.detail import SourceScreen
+from mirrorlab.core.tui.dialogs import ErrorDialog
 from mirrorlab.core.tui.model import Console
 from mirrorlab.core.tui.plots import PlotsScreen
 from textual.widgets import OptionList, Select, Static, Tree
@@ -327,6 +328,12 @@ async def test_demo_flow_record_then_reconstruct_then_plots(tmp_path: Path) -> N
             result = screen.query_one("#result", Static)
             await until(pilot, lambda: "results stored" in str(result.render()), "the analysis ran", polls=4000)
             assert "/results/reconstruct_mirror/run-0001: ok" in str(result.render())
+            stored = len(session.results())
+            await pilot.press("ctrl+r")  # again: its calibration group is taken, so nothing runs
+            await until(pilot, lambda: isinstance(app.screen, ErrorDialog), "the error dialog")
+            assert "steps.3.camera: /calibration/cam already exists" in app.screen.body
+            assert "fresh copy of the recording" in app.screen.body and len(session.results()) == stored
+            await pilot.press("escape")
             await pilot.press("escape", "g")
             select = app.screen.query_one("#what", Select)
             await until(pilot, lambda: app.screen.shown is not None, "a plot")
