@@ -183,9 +183,9 @@ class ControllerRunner:
         with self._outbox_ready:
             self._outbox.clear()  # not sent: the instruments keep the last acknowledged value
             self._outbox_ready.notify()
-        if self._sender is not None:  # ends after the command it may be waiting for
-            self._sender.join(timeout)
-            self._sender = None
+            sender, self._sender = self._sender, None
+        if sender is not None:  # ends after the command it may be waiting for
+            sender.join(timeout)
         if self.state == "running":
             self._set_state("stopped")
 
@@ -252,8 +252,8 @@ class ControllerRunner:
             with self._outbox_ready:
                 while not self._outbox and not self._stop.is_set():
                     self._outbox_ready.wait()
-                if self._stop.is_set():
-                    return
+                if self._stop.is_set() or self._sender is not threading.current_thread():
+                    return  # stopped (a sender stop() gave up on is not the one a restart starts)
                 key = next(iter(self._outbox))  # the oldest waiting
                 value, sample_time = self._outbox.pop(key)
             try:
