@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from mirrorlab.plugins.retarget import (
     Chain,
@@ -49,17 +49,31 @@ def random_rotation(seed: int) -> np.ndarray:
     return rotation("z", a[0]) @ rotation("y", a[1]) @ rotation("x", a[2])
 
 
+FOUND_IN_CI = (Chain([1.0, 2.0], ["y", "y"]), Chain([1.625, 1.0, 0.5], ["zyx", "z", "yz"]),
+               np.array([[0.32870805, -0.55251189]]))
+
+
 @settings(max_examples=40, deadline=None)
 @given(problems(), st.integers(0, 1000))
+@example(FOUND_IN_CI, 0)
 def test_f_nonnegative_and_rigid_motion_invariant(problem: tuple[Chain, Chain, np.ndarray], seed: int) -> None:
+    """The objective is invariant: the moved problem at the original solution has its residuals.
+
+    (The solver's optimum is not compared: from the same start, rounding-level differences can
+    lead a local solve to another minimum. CI found one, FOUND_IN_CI: f 0.0567 here, 0.0297 moved.)
+    """
     inp, out, q_in = problem
     X = inp.forward(q_in)
     R = random_rotation(seed)
     t = np.random.default_rng(seed + 1).uniform(-5, 5, 3)
     res = approximate(X, out, base=(np.eye(3), X[:, 0]), block=0)
     moved = approximate(X @ R.T + t, out, base=(R, t), block=0)
-    assert res.f[0] >= 0
-    assert moved.f[0] == pytest.approx(res.f[0], rel=1e-6, abs=1e-9)
+    assert res.f[0] >= 0 and moved.f[0] >= 0
+    obj = Objective(out, res.pairs, res.input.parents)
+    here, _ = obj.residuals(res.q, obj.arms(X), np.eye(3), X[:, 0])
+    there, _ = obj.residuals(res.q, obj.arms(X @ R.T + t), R, np.broadcast_to(t, X[:, 0].shape))
+    np.testing.assert_allclose(np.linalg.norm(there, axis=-1), np.linalg.norm(here, axis=-1), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(there, here @ R.T, rtol=1e-9, atol=1e-9)     # the residual vectors turn with it
 
 
 @settings(max_examples=30, deadline=None)
