@@ -53,8 +53,8 @@ def roundoff(*, cond: float = 1.0, scale: float = 1.0, ops: float = 1.0, safety:
 
     Examples
     --------
-    >>> roundoff(cond=1e3, scale=500.0) < 1e-8
-    True
+    >>> f"{roundoff(cond=1e3, scale=500.0):.1e}"   # a 500 mm result of a problem with κ = 1000
+    '1.1e-08'
     """
     return safety * ops * max(cond, 1.0) * EPS * scale
 
