@@ -3,8 +3,9 @@
 A plugin is any module or object with functions marked by :data:`hookimpl` (unmarked functions
 are not hook implementations). Every plugin, built-in or third-party, is found through the
 entry-point group ``mirrorlab``; the built-in ones are entry points of the ``mirrorlab``
-distribution (``mirrorlab.core.steps``, ``mirrorlab.instruments``, each
-``mirrorlab.plugins.<name>.plugin``)::
+distribution (``mirrorlab.core.steps``, each ``mirrorlab.instruments.<name>.plugin`` and
+``mirrorlab.plugins.<name>.plugin``), each declaring what it provides in the group
+``mirrorlab.provides`` so that it is imported only when used (see :mod:`mirrorlab.core.registry`)::
 
     # pyproject.toml of a third-party package
     [project.entry-points.mirrorlab]

@@ -7,6 +7,15 @@ their own distributions; one route for both. It then calls the registration hook
 (only functions marked with ``hookimpl`` count; ``tryfirst`` / ``trylast`` order the providers and
 hook wrappers wrap every plugin's registration) and records which plugin returned which class.
 
+**Lazy loading.** A plugin may declare, as entry points of the group ``mirrorlab.provides``, every
+name it registers and every lifecycle hook it implements (``"algorithm.derivatives" =
+"<its entry point's module>"``, ``"hook.mirrorlab_recording_stopped" = ...``). Such a plugin is
+imported only when one of its names or hooks is asked for, so a command pays only for the plugins
+it runs (the built-in plugins all declare theirs; ``tests/core/test_plugins.py`` checks that the
+declarations match). A plugin without declarations is imported when the registry is built.
+Listing plugins (:attr:`Registry.plugins`, :attr:`~Registry.broken`, :meth:`~Registry.conflicts`)
+imports every plugin.
+
 A plugin that fails to import, fails hook validation, raises in a registration hook or returns a
 class of the wrong kind (an algorithm from ``mirrorlab_register_instruments``) is recorded in
 :attr:`Registry.broken` with a one-line error and its traceback; everything else keeps working.
@@ -20,15 +29,26 @@ from __future__ import annotations
 import importlib
 import importlib.metadata as md
 import traceback
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import pluggy
 
 from . import hookspecs
 from .errors import DuplicateNameError, PluginError
 
+if TYPE_CHECKING:
+    from .algorithms import Algorithm
+    from .controllers import Controller
+    from .devices import Instrument
+    from .steps import Step
+
 ENTRY_POINT_GROUP = "mirrorlab"
+#: Entry-point group in which a plugin declares what it provides: ``"<kind>.<name>" = "<its module>"``,
+#: kind one of :data:`KINDS`, or ``"hook.<hook name>[.<tag>]"`` for a lifecycle hook it implements
+#: (the optional tag keeps entry names unique when two plugins of a distribution implement one hook).
+PROVIDES_GROUP = "mirrorlab.provides"
 #: The distribution whose entry points are the built-in plugins.
 BUILTIN_DISTRIBUTION = "mirrorlab"
 KINDS = ("instrument", "algorithm", "controller", "step")
@@ -52,6 +72,10 @@ class PluginInfo:
     error: str = ""
     traceback: str = ""
     provides: dict[str, list[str]] = field(default_factory=dict)
+    #: What the plugin declares in ``mirrorlab.provides`` (kind -> names; kind ``hook``: hook names).
+    declared: dict[str, list[str]] = field(default_factory=dict)
+    #: Whether it has been imported (a plugin with declarations is imported when first needed).
+    loaded: bool = False
 
     @property
     def ok(self) -> bool:
@@ -76,48 +100,80 @@ class Registry:
 
         ``builtins=False`` skips those of the ``mirrorlab`` distribution (the built-in plugins),
         ``entry_points=False`` those of every other distribution (third-party plugins); with both
-        off the registry is empty until :meth:`add_plugin`.
+        off the registry is empty until :meth:`add_plugin`. Plugins that declare what they provide
+        are imported when first needed, the others now.
         """
         self.pm = pluggy.PluginManager(hookspecs.PROJECT)
         self.pm.add_hookspecs(hookspecs)
-        self.plugins: dict[str, PluginInfo] = {}
+        self._plugins: dict[str, PluginInfo] = {}
+        self._pending: dict[str, md.EntryPoint] = {}  # declared plugins not imported yet
+        self._found: dict[str, dict[str, list[type]]] = {}  # plugin -> kind -> classes it registered
         self._items: dict[str, dict[str, list[Provided]]] = {k: {} for k in KINDS}
-        for ep in md.entry_points(group=ENTRY_POINT_GROUP):
-            dist = ep.dist.name if ep.dist else ""
-            if (builtins if dist == BUILTIN_DISTRIBUTION else entry_points):
-                self._load(ep.name, f"{ep.name} = {ep.value}", ep.load, dist, ep.dist.version if ep.dist else "")
-        self._collect([name for name, info in self.plugins.items() if info.ok])
+        wanted = [ep for ep in md.entry_points(group=ENTRY_POINT_GROUP)
+                  if (builtins if _dist(ep) == BUILTIN_DISTRIBUTION else entry_points)]
+        by_module = {(_dist(ep), ep.value): ep.name for ep in wanted}
+        for ep in wanted:
+            self._plugins[ep.name] = PluginInfo(ep.name, f"{ep.name} = {ep.value}", _dist(ep),
+                                                ep.dist.version if ep.dist else "")
+            self._pending[ep.name] = ep
+        for ep in md.entry_points(group=PROVIDES_GROUP):
+            plugin = by_module.get((_dist(ep), ep.value))
+            kind, _, item = ep.name.partition(".")
+            if kind == "hook":  # hook.<hook name>[.<tag>]: the tag keeps entry names unique in a distribution
+                item = item.partition(".")[0]
+            if plugin is not None and (kind in KINDS or kind == "hook") and item:
+                self._plugins[plugin].declared.setdefault(kind, []).append(item)
+        self._load([name for name, info in self._plugins.items() if not info.declared])
 
     # -- loading -----------------------------------------------------------------------------------
-    def _load(self, name: str, source: str, loader: Any, dist: str = "", version: str = "") -> None:
-        info = PluginInfo(name, source, dist, version)
-        self.plugins[name] = info
+    def _load(self, names: Iterable[str]) -> None:
+        """Import the pending plugins ``names`` and collect what they register."""
+        loaded = []
+        for name in names:
+            ep = self._pending.pop(name, None)
+            if ep is not None:
+                self._register(self._plugins[name], ep.load)
+                loaded.append(name)
+        self._collect([name for name in loaded if self._plugins[name].ok])
+
+    def _register(self, info: PluginInfo, loader: Any) -> None:
+        info.loaded = True
         try:
             plugin = loader()
-            self.pm.register(plugin, name=name)
+            self.pm.register(plugin, name=info.name)
             self.pm.check_pending()
         except Exception as exc:  # any failure: record it, keep the others working
             info.error = f"{type(exc).__name__}: {exc}"
             info.traceback = traceback.format_exc()
-            if self.pm.has_plugin(name):
-                self.pm.unregister(name=name)
+            if self.pm.has_plugin(info.name):
+                self.pm.unregister(name=info.name)
 
     def _collect(self, names: list[str]) -> None:
         """Call the registration hooks of the plugins ``names``; each plugin counts whole or not at all."""
-        found: dict[str, dict[str, list[type]]] = {}
         for name in names:
-            info = self.plugins[name]
+            info = self._plugins[name]
             try:
-                found[name] = {kind: self._call(kind, name) for kind in KINDS}
+                self._found[name] = {kind: self._call(kind, name) for kind in KINDS}
             except PluginError as exc:
                 info.error = str(exc)
                 info.traceback = traceback.format_exc()
                 self.pm.unregister(name=name)  # nothing of a broken plugin runs: no hooks, no wrappers
         for kind in KINDS:  # providers of one name in pluggy's call order (tryfirst first)
+            self._items[kind] = {}
             for name in self._call_order(kind):
-                for cls in found.get(name, {}).get(kind, ()):
+                for cls in self._found.get(name, {}).get(kind, ()):
                     self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, name))
-                    self.plugins[name].provides.setdefault(kind, []).append(cls.name)
+        for name in names:
+            found = self._found.get(name, {})
+            self._plugins[name].provides = {kind: [c.name for c in found[kind]] for kind in KINDS if found.get(kind)}
+
+    def load_all(self) -> None:
+        """Import every plugin not imported yet (listing, diagnosis)."""
+        self._load(list(self._pending))
+
+    def _need(self, kind: str, name: str) -> None:
+        """Import the pending plugins that declare ``name`` of ``kind``."""
+        self._load([p for p in list(self._pending) if name in self._plugins[p].declared.get(kind, ())])
 
     def _call_order(self, kind: str) -> list[str]:
         impls = getattr(self.pm.hook, HOOKS[kind]).get_hookimpls()
@@ -143,10 +199,10 @@ class Registry:
         For scripts, notebooks and benchmarks that define plugins inline; installed packages use the
         entry-point group instead. A failure is recorded like any broken plugin and returned.
         """
-        if name in self.plugins:
-            raise PluginError(f"a plugin named {name!r} is already registered ({self.plugins[name].source})")
-        self._load(name, source, lambda: plugin)
-        info = self.plugins[name]
+        if name in self._plugins:
+            raise PluginError(f"a plugin named {name!r} is already registered ({self._plugins[name].source})")
+        info = self._plugins[name] = PluginInfo(name, source)
+        self._register(info, lambda: plugin)
         if info.ok:
             self._collect([name])
         return info
@@ -174,53 +230,106 @@ class Registry:
             raise PluginError(f"plugin {plugin!r}: {kind} {cls.name!r}: `parameters` must be a ParameterSet")
 
     # -- queries -------------------------------------------------------------------------------------
+    @property
+    def plugins(self) -> dict[str, PluginInfo]:
+        """Every plugin, by name (imports those not imported yet)."""
+        self.load_all()
+        return dict(self._plugins)
+
+    def installed(self) -> dict[str, PluginInfo]:
+        """Every plugin, by name, as known now: imported or only declared (imports nothing)."""
+        return dict(self._plugins)
+
     def names(self, kind: str) -> list[str]:
-        return sorted(self._items[kind])
+        """Every name of ``kind``: registered by an imported plugin or declared by another (imports nothing)."""
+        declared = {n for p in self._pending for n in self._plugins[p].declared.get(kind, ())}
+        return sorted(declared.union(self._items[kind]))
 
     def providers(self, kind: str, name: str) -> list[Provided]:
         """Every registration of ``name`` (more than one means a conflict)."""
+        self._need(kind, name)
         return list(self._items[kind].get(name, ()))
+
+    @overload
+    def get(self, kind: Literal["instrument"], name: str) -> type[Instrument]: ...
+    @overload
+    def get(self, kind: Literal["algorithm"], name: str) -> type[Algorithm]: ...
+    @overload
+    def get(self, kind: Literal["controller"], name: str) -> type[Controller]: ...
+    @overload
+    def get(self, kind: Literal["step"], name: str) -> type[Step]: ...
+    @overload
+    def get(self, kind: str, name: str) -> type: ...
 
     def get(self, kind: str, name: str) -> type:
         """The class registered as ``name``; raises :class:`PluginError` or :class:`DuplicateNameError`."""
-        providers = self._items[kind].get(name)
+        providers = self.providers(kind, name)
+        if not providers:
+            self.load_all()  # a declaration that does not hold, or a name no one provides: look everywhere
+            providers = self._items[kind].get(name, [])
         if not providers:
             known = ", ".join(self.names(kind)) or "none"
-            broken = [p.name for p in self.plugins.values() if not p.ok]
+            broken = [p.name for p in self._plugins.values() if not p.ok]
             hint = f"; broken plugins: {', '.join(broken)} (see `mirrorlab plugins doctor`)" if broken else ""
             raise PluginError(f"no {kind} named {name!r}; installed: {known}{hint}")
         if len(providers) > 1:
             raise DuplicateNameError(self._conflict_message(kind, name, providers))
         return providers[0].cls
 
-    def instrument(self, name: str) -> type:
+    def instrument(self, name: str) -> type[Instrument]:
         return self.get("instrument", name)
 
-    def algorithm(self, name: str) -> type:
+    def algorithm(self, name: str) -> type[Algorithm]:
         return self.get("algorithm", name)
 
-    def controller(self, name: str) -> type:
+    def controller(self, name: str) -> type[Controller]:
         return self.get("controller", name)
 
-    def step(self, name: str) -> type:
+    def step(self, name: str) -> type[Step]:
         return self.get("step", name)
 
     def conflicts(self) -> list[str]:
-        """One message per ambiguous name."""
+        """One message per ambiguous name (imports every plugin)."""
+        self.load_all()
         return [self._conflict_message(kind, name, providers)
                 for kind in KINDS for name, providers in sorted(self._items[kind].items())
                 if len(providers) > 1]
 
     def _conflict_message(self, kind: str, name: str, providers: list[Provided]) -> str:
-        who = " and ".join(f"{p.plugin} ({self.plugins[p.plugin].source})" for p in providers)
+        who = " and ".join(f"{p.plugin} ({self._plugins[p.plugin].source})" for p in providers)
         return (f"the {kind} name {name!r} is provided by both {who}; "
                 "uninstall one of them or ask its author to rename it")
 
     def provider(self, kind: str, name: str) -> PluginInfo:
-        return self.plugins[self._items[kind][name][0].plugin]
+        return self._plugins[self.providers(kind, name)[0].plugin]
+
+    def undeclared(self) -> list[str]:
+        """Where a plugin's ``mirrorlab.provides`` declarations and its registrations differ (imports every plugin)."""
+        self.load_all()
+        problems = []
+        for info in self._plugins.values():
+            if not info.declared or not info.ok:
+                continue
+            actual = {kind: sorted(names) for kind, names in info.provides.items()}
+            hooks = [hook for hook in _LIFECYCLE
+                     if any(i.plugin_name == info.name for i in getattr(self.pm.hook, hook).get_hookimpls())]
+            if hooks:
+                actual["hook"] = hooks
+            declared = {kind: sorted(names) for kind, names in info.declared.items()}
+            for kind in sorted(set(actual) | set(declared)):
+                missing = sorted(set(actual.get(kind, ())) - set(declared.get(kind, ())))
+                extra = sorted(set(declared.get(kind, ())) - set(actual.get(kind, ())))
+                if missing:
+                    problems.append(f"plugin {info.name!r} provides {kind} {', '.join(missing)} without declaring it "
+                                    f"in entry-point group {PROVIDES_GROUP!r}")
+                if extra:
+                    problems.append(f"plugin {info.name!r} declares {kind} {', '.join(extra)} in {PROVIDES_GROUP!r} "
+                                    "but does not provide it")
+        return problems
 
     @property
     def broken(self) -> list[PluginInfo]:
+        """Plugins that failed to load or register (imports every plugin)."""
         return [p for p in self.plugins.values() if not p.ok]
 
     @property
@@ -229,6 +338,7 @@ class Registry:
 
     def notify(self, hook_name: str, **kwargs: Any) -> list[str]:
         """Call a lifecycle hook on every plugin; failures are returned as messages, never raised."""
+        self._need("hook", hook_name)
         errors = []
         for impl in getattr(self.pm.hook, hook_name).get_hookimpls():
             try:
@@ -236,6 +346,15 @@ class Registry:
             except Exception as exc:
                 errors.append(f"plugin {impl.plugin_name!r} failed in {hook_name}: {type(exc).__name__}: {exc}")
         return errors
+
+
+#: The lifecycle hooks (called with :meth:`Registry.notify`), which a plugin declares as ``hook.<name>``.
+_LIFECYCLE = ("mirrorlab_session_opened", "mirrorlab_recording_started", "mirrorlab_recording_stopped",
+              "mirrorlab_result_written", "mirrorlab_session_closing", "mirrorlab_add_cli_commands")
+
+
+def _dist(ep: md.EntryPoint) -> str:
+    return ep.dist.name if ep.dist else ""
 
 
 def _a(word: str) -> str:

@@ -266,8 +266,10 @@ class Session:
             "hdf5": h5py.version.hdf5_version,
             "packages": {p: _version(p) for p in _PACKAGES},
             "mirrorlab": mirrorlab_version(),
+            # every installed plugin; one not imported yet (see Registry) is listed with what it declares
             "plugins": {name: {"source": p.source, "distribution": p.distribution, "version": p.version,
-                               "ok": p.ok, "provides": p.provides} for name, p in registry.plugins.items()},
+                               "ok": p.ok, "provides": p.provides if p.loaded else p.declared}
+                        for name, p in registry.installed().items()},
         }
         config.create_dataset("provenance", data=json.dumps(provenance, indent=1, sort_keys=True),
                               dtype=schema.STR)

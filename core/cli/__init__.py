@@ -67,7 +67,7 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         if command.name in sub.choices:  # added with a sibling from the same module
             continue
         if command.target in load:
-            command.add(sub)
+            command.add(sub, argv)
         else:
             sub.add_parser(command.name, help=command.help, add_help=False)
     builtin = {c.name for c in table}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ from ..errors import AlgorithmError, Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
+from .commands import named_after
 from .options import add_parameter_options, collected, existing_path
 from .outputs import add_overwrite_option, cli_advice
 from .progress import progress_bar
@@ -30,11 +32,27 @@ def duration(text: str) -> float:
     return float(value)
 
 
-def add(sub: argparse._SubParsersAction) -> None:
+def _built(names: list[str], argv: Sequence[str] | None, command: str) -> set[str]:
+    """The sub-commands of ``command`` whose options parsing ``argv`` needs: none if ``argv`` runs another
+    command, else the one it names, or all (the full help, ``--help``, a misspelt name)."""
+    if argv is not None and command not in argv:
+        return set()
+    wanted = named_after(argv, command)
+    return {wanted} if wanted in names else set(names)
+
+
+def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> None:
+    """Add ``analyze`` and ``record``; with ``argv`` naming an algorithm (instrument), only its options
+    are built, so only the plugin providing it is imported (the others are names, never parsed)."""
     reg = get_registry()
     a = sub.add_parser("analyze", help="run a registered algorithm on datasets of a session")
     asub = a.add_subparsers(dest="algorithm", metavar="ALGORITHM", required=True)
-    for name in reg.names("algorithm"):
+    names = reg.names("algorithm")
+    built = _built(names, argv, "analyze")
+    for name in names:
+        if name not in built:
+            asub.add_parser(name, add_help=False)
+            continue
         try:
             cls = reg.algorithm(name)
         except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
@@ -52,7 +70,12 @@ def add(sub: argparse._SubParsersAction) -> None:
 
     r = sub.add_parser("record", help="record one instrument (real or simulated) into a new session")
     rsub = r.add_subparsers(dest="instrument", metavar="INSTRUMENT", required=True)
-    for name in reg.names("instrument"):
+    names = reg.names("instrument")
+    built = _built(names, argv, "record")
+    for name in names:
+        if name not in built:
+            rsub.add_parser(name, add_help=False)
+            continue
         try:
             cls = reg.instrument(name)
         except Exception:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 
@@ -20,16 +22,30 @@ class Command:
     """One sub-command: its name and help as listed by ``mirrorlab --help``, and its parser builder.
 
     ``target`` is ``"module:function"``; the function takes the sub-parsers action and adds this
-    command's parser (it may add sibling commands of the same module too).
+    command's parser (it may add sibling commands of the same module too). A function that also
+    takes ``argv`` (the command line being parsed, or None for the full help) may build only what
+    parsing it needs: ``analyze`` and ``record`` build one algorithm's or instrument's options, so
+    only its plugin is imported.
     """
 
     name: str
     help: str
     target: str
 
-    def add(self, subparsers: argparse._SubParsersAction) -> None:
+    def add(self, subparsers: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> None:
         module, _, function = self.target.partition(":")
-        getattr(importlib.import_module(module), function)(subparsers)
+        builder = getattr(importlib.import_module(module), function)
+        if "argv" in inspect.signature(builder).parameters:
+            builder(subparsers, argv=argv)
+        else:
+            builder(subparsers)
+
+
+def named_after(argv: Sequence[str] | None, command: str) -> str | None:
+    """The first positional argument after ``command`` in ``argv`` (e.g. the algorithm of ``analyze``)."""
+    if argv is None or command not in argv:
+        return None
+    return next((a for a in list(argv)[list(argv).index(command) + 1:] if not a.startswith("-")), None)
 
 
 CORE_COMMANDS = (

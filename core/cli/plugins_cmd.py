@@ -90,8 +90,9 @@ def simulator_problem(cls: Any) -> str:
 def doctor(args: argparse.Namespace) -> int:
     reg = get_registry()
     rows = []
+    declarations = reg.undeclared()  # a name a plugin provides but does not declare is found only by listing
     for p in reg.plugins.values():
-        simulators, problems = {}, []
+        simulators, problems = {}, [m for m in declarations if m.startswith(f"plugin {p.name!r} ")]
         for name in p.provides.get("instrument", []):
             cls = reg.providers("instrument", name)[0].cls
             simulators[name] = cls.has_simulator()

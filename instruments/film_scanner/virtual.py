@@ -9,7 +9,7 @@ films or scanners).
   film of a preset lab for the FSCAN simulator.
 * :func:`record_truth`: writes the truth of the frames an instrument recorded to
   ``/truth/<label>/``; :func:`record_all_truth` does it for every virtual-lab film scanner of a
-  session, and ``mirrorlab.instruments`` calls it from the ``mirrorlab_recording_stopped`` hook.
+  session, and the film scanner's plugin calls it from the ``mirrorlab_recording_stopped`` hook.
 """
 
 from __future__ import annotations

@@ -104,3 +104,37 @@ def test_third_party_commands_still_work(hello_site: Path) -> None:
     assert "hello" in unknown.stderr and "calibrate" in unknown.stderr
     builtin = run_cli("plugins", sites=(hello_site,))
     assert builtin.returncode == 0 and "filter" in builtin.stdout
+
+
+def _plugin_packages(modules: set[str]) -> set[str]:
+    """The built-in plugin packages among ``modules`` (``plugins.kinematics``, ``instruments.film_scanner``)."""
+    return {".".join(m.split(".")[1:3]) for m in modules
+            if m.startswith(("mirrorlab.plugins.", "mirrorlab.instruments.")) and m.count(".") >= 2}
+
+
+def test_commands_import_only_the_plugins_they_run(tmp_path: Path) -> None:
+    """The registry imports a plugin only for a name it declares (entry-point group mirrorlab.provides)."""
+    trc = tmp_path / "walk.trc"
+    rows = "".join(f"{i + 1}\t{i / 100:.2f}\t{i:.1f}\t0.0\t0.0\n" for i in range(20))
+    trc.write_text("PathFileType\t4\t(X/Y/Z)\twalk.trc\nDataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\t"
+                   "OrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n100\t100\t20\t1\tmm\t100\t1\t20\n"
+                   "Frame#\tTime\tM\t\t\n\t\tX1\tY1\tZ1\n\n" + rows)
+    session = tmp_path / "s.h5"
+    code, _, modules = _imported("kinematics", "import", str(trc), "--session", str(session))
+    assert code == 0 and _plugin_packages(modules) == {"plugins.kinematics"}, sorted(_plugin_packages(modules))
+    for command in (("session", "info"), ("session", "tree"), ("session", "check")):
+        code, out, modules = _imported(*command, str(session))
+        assert code == 0 and _plugin_packages(modules) == set(), (command, sorted(_plugin_packages(modules)))
+    run = "/markers/walk"
+    code, out, modules = _imported("analyze", "derivatives", str(session), "--no-progress",
+                                   "--input", f"time={run}/time", "--input", f"values={run}/points")
+    assert code == 0 and _plugin_packages(modules) == {"plugins.kinematics"}, (out, sorted(_plugin_packages(modules)))
+
+
+def test_declarations_match_what_the_builtin_plugins_register() -> None:
+    """What pyproject.toml declares under mirrorlab.provides is what each built-in plugin registers."""
+    from mirrorlab.core.registry import Registry
+
+    reg = Registry(entry_points=False)
+    assert reg.undeclared() == []
+    assert all(info.declared for info in reg.installed().values()), "every built-in plugin declares what it provides"

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
 from mirrorlab.core import DuplicateNameError, Session
 from mirrorlab.core.registry import get_registry
 
-from tests.support import run_cli
+from tests.support import pip_install_target, run_cli
 
 
 def test_builtins_are_registered() -> None:
@@ -173,7 +174,8 @@ def test_registration_hooks_are_called_through_pluggy() -> None:
     assert reg.add_plugin(Unmarked(), "unmarked").ok and reg.names("algorithm") == []
     reg.add_plugin(Wrapper(), "wrapper")
     assert reg.add_plugin(Late(), "late").ok and reg.add_plugin(Early(), "early").ok
-    assert [p.plugin for p in reg.providers("algorithm", "shared")] == ["late", "early"]
+    # pluggy's order (tryfirst first) decides the order of the providers, whatever the loading order
+    assert [p.plugin for p in reg.providers("algorithm", "shared")] == ["early", "late"]
     hidden = _algorithm("x_hidden")
 
     class Hidden:
@@ -184,15 +186,7 @@ def test_registration_hooks_are_called_through_pluggy() -> None:
     assert reg.add_plugin(Hidden(), "hidden").ok
     assert "x_hidden" not in reg.names("algorithm") and reg.provider("algorithm", "kept").name == "hidden"
     assert seen[-1] == ["x_hidden", "kept"]
-
-    # discovery in one go: pluggy's order (tryfirst first) decides the order of the providers
-    pm_order = Registry(entry_points=False, builtins=False)
-    for plugin, name in ((Late(), "late"), (Early(), "early")):
-        pm_order.pm.register(plugin, name=name)
-        pm_order.plugins[name] = __import__("mirrorlab.core.registry", fromlist=["PluginInfo"]).PluginInfo(name, "test")
-    pm_order._collect(["late", "early"])
-    assert [p.plugin for p in pm_order.providers("algorithm", "shared")] == ["early", "late"]
-    assert isinstance(pm_order.pm, pluggy.PluginManager)
+    assert isinstance(reg.pm, pluggy.PluginManager)
 
 
 @pytest.mark.parametrize(("hook", "returned", "message"), [
@@ -260,3 +254,55 @@ def test_make_simulator_is_part_of_the_instrument_base_class() -> None:
     assert not Real.has_simulator()
     with pytest.raises(PluginError, match="instrument plugin 'real' has no simulator; set simulate = false"):
         Real.make_simulator({}, seed=0)
+
+
+LAZY_PLUGIN = '''
+from mirrorlab.core import Algorithm, ParameterSet, hookimpl
+
+
+def _algorithm(name):
+    return type(name, (Algorithm,), {"name": name, "version": "1", "description": name, "parameters": ParameterSet(),
+                                     "run": lambda self, inputs, params, context: {}})
+
+
+@hookimpl
+def mirrorlab_register_algorithms():
+    return [_algorithm("lazy_declared"), _algorithm("lazy_undeclared")]
+'''
+
+
+@pytest.fixture(scope="module")
+def lazy_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A third-party plugin that declares one of its two algorithms in the group mirrorlab.provides."""
+    src = tmp_path_factory.mktemp("lazy-src")
+    (src / "lazy_mirrorlab").mkdir()
+    (src / "lazy_mirrorlab" / "__init__.py").write_text(LAZY_PLUGIN)
+    (src / "pyproject.toml").write_text(
+        '[build-system]\nrequires = ["setuptools>=61"]\nbuild-backend = "setuptools.build_meta"\n'
+        '[project]\nname = "mirrorlab-lazy"\nversion = "1.0.0"\n'
+        '[project.entry-points.mirrorlab]\nlazy = "lazy_mirrorlab"\n'
+        '[project.entry-points."mirrorlab.provides"]\n"algorithm.lazy_declared" = "lazy_mirrorlab"\n'
+        '[tool.setuptools]\npackages = ["lazy_mirrorlab"]\n')
+    return pip_install_target(src, tmp_path_factory.mktemp("lazy-site"))
+
+
+def test_a_declared_plugin_is_imported_only_when_a_name_it_declares_is_asked_for(lazy_site: Path, with_sites) -> None:
+    reg = with_sites(lazy_site)
+    assert "lazy_mirrorlab" not in sys.modules and not reg.installed()["lazy"].loaded
+    assert "lazy_declared" in reg.names("algorithm")  # known from the declaration alone
+    assert "lazy_mirrorlab" not in sys.modules
+    assert reg.algorithm("lazy_declared").name == "lazy_declared" and reg.installed()["lazy"].loaded
+    assert reg.algorithm("lazy_undeclared").name == "lazy_undeclared"  # found once imported
+    assert reg.undeclared() == ["plugin 'lazy' provides algorithm lazy_undeclared without declaring it in "
+                                "entry-point group 'mirrorlab.provides'"]
+    sys.modules.pop("lazy_mirrorlab")
+
+
+def test_an_undeclared_name_is_still_found_and_doctor_says_what_to_declare(lazy_site: Path, with_sites) -> None:
+    reg = with_sites(lazy_site)
+    assert reg.algorithm("lazy_undeclared").name == "lazy_undeclared"  # not declared: every plugin is searched
+    sys.modules.pop("lazy_mirrorlab")
+    doctor = run_cli("plugins", "doctor", sites=(lazy_site,))
+    assert doctor.returncode == 1
+    assert "lazy [PROBLEM]" in doctor.stdout
+    assert "problem: plugin 'lazy' provides algorithm lazy_undeclared without declaring it" in doctor.stdout
