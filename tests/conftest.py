@@ -1,13 +1,47 @@
-"""Shared fixtures: the third-party test plugins installed into temporary site directories."""
+"""Shared fixtures: the validation data folder, the third-party test plugins installed into
+temporary site directories.
+
+Tests that read the real recordings of ``../shared/data`` are marked ``data`` (or use the
+``shared_data`` fixture). Without that folder they are skipped with a reason naming it, so a clone
+on its own still collects and runs the rest; with ``MIRRORLAB_REQUIRE_DATA=1`` (CI) they fail
+instead, so the validation against real data cannot silently drop out.
+"""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from tests.support import THIRDPARTY, pip_install_target
+from tests.support import REQUIRE_DATA_ENV, SHARED_DATA, THIRDPARTY, pip_install_target
+
+
+def require_shared_data() -> Path:
+    """The shared data folder; skips the calling test without it (fails under ``MIRRORLAB_REQUIRE_DATA=1``)."""
+    if SHARED_DATA.is_dir():
+        return SHARED_DATA
+    reason = (f"needs the validation data folder {SHARED_DATA} (../shared/data beside the clone: real "
+              "recordings by other labs, not part of the repository)")
+    if os.environ.get(REQUIRE_DATA_ENV) == "1":
+        pytest.fail(f"{reason}; {REQUIRE_DATA_ENV}=1 requires it")
+    pytest.skip(reason)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "data: reads the real recordings of ../shared/data (skipped without it)")
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    if item.get_closest_marker("data") is not None:
+        require_shared_data()
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """``../shared/data``: real recordings by other labs (see its README)."""
+    return require_shared_data()
 
 
 @pytest.fixture(scope="session")

@@ -203,7 +203,8 @@ def test_only_known_block_kinds() -> None:
                     f"{doc.name} line {b.line}: a command in a plain block; put it in a ```sh block"
 
 
-@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
+@pytest.mark.parametrize("doc", [pytest.param(d, marks=pytest.mark.data) if "shared/data" in d.read_text() else d
+                                 for d in DOCS], ids=lambda p: p.name)
 def test_document_runs_as_written(doc: Path, lab: Lab) -> None:
     runs = run_document(doc, lab)
     if doc.name == "writing-plugins.md":  # the doc's own package, installed with pip -e, is listed and conforms

@@ -126,7 +126,9 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize(("command", "args", "expected"), CASES,
+@pytest.mark.parametrize(("command", "args", "expected"),
+                         [pytest.param(*case, marks=pytest.mark.data) if any(str(SHARED_DATA) in a for a in case[1])
+                          else case for case in CASES],
                          ids=[f"{c}-{e}-{i}" for i, (c, _, e) in enumerate(CASES)])
 def test_exit_code(command: str, args: list[str], expected: int, files: Path, acme_site: Path) -> None:
     proc = run_cli(*(a.replace(D, str(files)) for a in args), sites=(acme_site,), cwd=files)

@@ -79,6 +79,7 @@ def test_recipe_run_takes_overwrite(tmp_path: Path) -> None:
     assert session_id(out) != first and only_file(tmp_path) == ["run.h5", "virtual.toml"]
 
 
+@pytest.mark.data
 def test_a_failed_import_leaves_no_session_and_the_retry_works(tmp_path: Path) -> None:
     garbage = tmp_path / "garbage.c3d"
     garbage.write_bytes(b"not a c3d file\n")

@@ -22,12 +22,12 @@ from mirrorlab.instruments.film_scanner import FilmScanner
 from mirrorlab.instruments.film_scanner.sources import FolderSource
 
 from tests.fuzz.strategies import damaged, fuzz
-from tests.support import SHARED_DATA
 
-PHOTO = SHARED_DATA / "calibration" / "chessboard_pycalib" / "00000000.jpg"
-_small = cv2.resize(cv2.imread(str(PHOTO), cv2.IMREAD_GRAYSCALE), (160, 90), interpolation=cv2.INTER_AREA)
-#: Real photographs, made small so that decoding is quick: a baseline JPEG and a PNG of the same view.
-FRAMES = {".jpg": cv2.imencode(".jpg", _small)[1].tobytes(), ".png": cv2.imencode(".png", _small)[1].tobytes()}
+#: A small chessboard view with grey levels and blur like a photograph's (small so that decoding is
+#: quick), as a baseline JPEG and a PNG: the folder source must survive any damage to either.
+_board = cv2.GaussianBlur(np.kron((np.indices((9, 16)).sum(axis=0) % 2) * 160 + 40, np.ones((10, 10))).astype(np.uint8),
+                          (5, 5), 1.5)
+FRAMES = {".jpg": cv2.imencode(".jpg", _board)[1].tobytes(), ".png": cv2.imencode(".png", _board)[1].tobytes()}
 
 
 @pytest.fixture(scope="module")

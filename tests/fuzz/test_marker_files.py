@@ -23,12 +23,18 @@ from mirrorlab.plugins.photogrammetry.csvio import read_columns_csv, read_marker
 from tests.fuzz.strategies import damaged, fuzz
 from tests.support import SHARED_DATA
 
-C3D = (SHARED_DATA / "mocap" / "markers_analogs.c3d").read_bytes()
-TRC = (SHARED_DATA / "mocap" / "markers.trc").read_bytes()
-#: The header and the first 150 rows of the Qualisys export (the whole file is slow to fuzz).
-TSV = b"".join((SHARED_DATA / "trajectories" / "6_throws_minimal_tracking_loss.tsv").read_bytes()
-               .splitlines(keepends=True)[:162])
-MOT = (SHARED_DATA / "mocap" / "inverse_kin.mot").read_bytes()
+
+def _real(relative: str, rows: int | None = None) -> st.SearchStrategy[bytes]:
+    """Damaged copies of a real file of ../shared/data (read when first drawn: the test is marked ``data``)."""
+    def read() -> bytes:
+        data = (SHARED_DATA / relative).read_bytes()
+        return data if rows is None else b"".join(data.splitlines(keepends=True)[:rows])
+    return st.deferred(lambda: damaged(read(), hot=HOT[relative]))
+
+
+#: Bytes of each file where the damage is concentrated (headers, parameter blocks, first rows).
+HOT = {"mocap/markers_analogs.c3d": 16 * 512, "mocap/markers.trc": 3000,
+       "trajectories/6_throws_minimal_tracking_loss.tsv": 1500, "mocap/inverse_kin.mot": 1200}
 MARKER_CSV = b"# 2-D markers\nframe,marker,x,y,xv,yv\n0,0,812.4,401.2,233.9,388.0\n0,1,790.1,455.7,,\n" \
              b"1,0,811.0,402.5,234.1,387.2\n1,1,791.3,454.9,230.0,nan\n"
 POINTS_CSV = b"frame,marker,X,Y,Z,gap\n0,0,1,2,3,0.5\n0,1,4,5,6,0.25\n1,0,7,8,9,0\n1,1,nan,nan,nan,nan\n"
@@ -61,23 +67,27 @@ def consistent(result: object) -> None:
         assert result.points.shape[0] > 0 and np.isfinite(result.rate) and result.rate > 0
 
 
+@pytest.mark.data
 @pytest.mark.timeout(120)
 @BINARY
-@given(data=damaged(C3D, hot=16 * 512))
+@given(data=_real("mocap/markers_analogs.c3d"))
 def test_c3d(folder: Path, data: bytes) -> None:
     consistent(outcome(read_c3d, folder / "fuzz.c3d", data))
 
 
+@pytest.mark.data
 @pytest.mark.timeout(120)
 @TEXT
-@given(data=damaged(TRC, hot=3000) | st.text(max_size=400).map(str.encode))
+@given(data=_real("mocap/markers.trc") | st.text(max_size=400).map(str.encode))
 def test_trc(folder: Path, data: bytes) -> None:
     consistent(outcome(read_trc, folder / "fuzz.trc", data))
 
 
+@pytest.mark.data
 @pytest.mark.timeout(120)
 @TEXT
-@given(data=damaged(TSV, hot=1500) | st.text(max_size=400).map(str.encode))
+# the header and the first 150 rows of the Qualisys export (the whole file is slow to fuzz)
+@given(data=_real("trajectories/6_throws_minimal_tracking_loss.tsv", rows=162) | st.text(max_size=400).map(str.encode))
 def test_qualisys_tsv(folder: Path, data: bytes) -> None:
     consistent(outcome(read_qualisys_tsv, folder / "fuzz.tsv", data))
 
@@ -110,9 +120,10 @@ def test_points_csv(folder: Path, data: bytes) -> None:
         assert all(v.shape == points.shape[:2] for v in extra.values())
 
 
+@pytest.mark.data
 @pytest.mark.timeout(120)
 @TEXT
-@given(data=damaged(MOT, hot=1200) | st.text(max_size=300).map(str.encode))
+@given(data=_real("mocap/inverse_kin.mot") | st.text(max_size=300).map(str.encode))
 def test_opensim_mot(folder: Path, data: bytes) -> None:
     result = outcome(lambda p: read_mot(p, "elbow_flexion"), folder / "reference.mot", data)
     if not isinstance(result, MirrorlabError):

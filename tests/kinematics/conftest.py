@@ -1,4 +1,4 @@
-"""Shared fixtures of the kinematics tests (data folder outside the repository)."""
+"""Shared fixtures of the kinematics tests."""
 
 from __future__ import annotations
 
@@ -6,10 +6,8 @@ from pathlib import Path
 
 import pytest
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
-
 
 @pytest.fixture(scope="session")
-def data_dir() -> Path:
-    assert DATA.is_dir(), f"shared validation data not found at {DATA}"
-    return DATA
+def data_dir(shared_data: Path) -> Path:
+    """The shared validation data folder (``../shared/data``; the test is skipped without it)."""
+    return shared_data

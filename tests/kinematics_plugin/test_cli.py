@@ -31,7 +31,7 @@ def _one_error_line(proc) -> str:
 
 
 @pytest.fixture(scope="module")
-def session(tmp_path_factory) -> Path:
+def session(tmp_path_factory, shared_data) -> Path:
     """The pyomeca C3D imported through the CLI (shared by the tests of this module)."""
     out = tmp_path_factory.mktemp("kin") / "trial.h5"
     proc = run_cli("kinematics", "import", str(C3D), "--session", str(out), "--name", "trial")
@@ -79,6 +79,7 @@ def test_elbow_angles_match_opensim(session, tmp_path):
     assert ok.sum() >= 70 and float(np.sqrt(np.mean(d[ok] ** 2))) < 2.0
 
 
+@pytest.mark.data
 def test_isb_elbow_on_the_c3d_file_directly():
     proc = run_cli("kinematics", "angles", str(C3D), "--GH", "ACRO_tip", "--EL", "EPICl", "--EM", "EPICm",
                    "--US", "STYLu", "--RS", "STYLr", "--IJ", "STER", "--PX", "XIPH", "--C7", "T1", "--T8", "T10",

@@ -22,6 +22,7 @@ from mirrorlab.plugins.kinematics.store import (
 from tests.support import SHARED_DATA
 
 
+@pytest.mark.data
 def test_import_read_export_round_trip(tmp_path: Path):
     rng = np.random.default_rng(1)
     pts = rng.normal(0, 300, (30, 3, 3))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import doctest
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -22,8 +21,9 @@ from mirrorlab.plugins.photogrammetry.cameras import (
 )
 from mirrorlab.plugins.photogrammetry.errors import CalibrationError, DegenerateGeometry
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
-CHESS = DATA / "calibration" / "chessboard_pycalib"
+from tests.support import SHARED_DATA
+
+CHESS = SHARED_DATA / "calibration" / "chessboard_pycalib"
 
 F1 = np.array([435.68, 202.6, 1442.024])
 GX = np.array([-849, -728.5, -607.5, -485, -364, -241.5, -120.5, 0, 121, 243, 365, 486, 607], float)
@@ -194,9 +194,7 @@ def test_calibrate_pinhole_synthetic_and_errors():
 
 
 @pytest.fixture(scope="module")
-def chessboard():
-    if not CHESS.is_dir():
-        pytest.fail(f"real data folder {CHESS} is absent: clone the repo next to shared/ (../shared/data)")
+def chessboard(shared_data):
     files = sorted(CHESS.glob("*.jpg"))
     det = find_chessboard_corners(files, (10, 7), square_size=160.0)
     return det

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
@@ -15,7 +13,9 @@ from mirrorlab.plugins.photogrammetry import (
 )
 from mirrorlab.plugins.photogrammetry.errors import CalibrationError, DegenerateGeometry
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mirror" / "takahashi_mirror_chessboard"
+from tests.support import SHARED_DATA
+
+DATA = SHARED_DATA / "mirror" / "takahashi_mirror_chessboard"
 
 
 def _load_takahashi():
@@ -38,6 +38,7 @@ def _project_cam(Y: np.ndarray, K: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------- Takahashi data (real photos)
 
 
+@pytest.mark.data
 def test_takahashi_data_reprojection() -> None:
     """Five photos through a mirror: ≤ 0.5 px with radial distortion refined (published 0.354 px)."""
     K, X, xs = _load_takahashi()
@@ -59,6 +60,7 @@ def test_takahashi_data_reprojection() -> None:
     assert np.all(Y @ cal.normals.T + cal.distances > 0)
 
 
+@pytest.mark.data
 def test_takahashi_detected_corners_are_flipped() -> None:
     """A chessboard detector returns each row of a mirrored board reversed."""
     K, X, xs = _load_takahashi()

@@ -36,6 +36,7 @@ def _marker_csv(path: Path, real: np.ndarray, virt: np.ndarray | None = None) ->
     return path
 
 
+@pytest.mark.data
 def test_calibrate_real_chessboard_photos(tmp_path: Path) -> None:
     """pycalib's 29 photos, 10x7 inner corners: fx, fy within 1 % of 1329.34, RMS <= 0.5 px."""
     session = tmp_path / "cal.h5"
@@ -187,6 +188,7 @@ def test_central_with_marker_k_imaged_too_names_the_mismatch(tmp_path: Path) -> 
                                   "per frame") in r.stderr
 
 
+@pytest.mark.data
 def test_chessboard_square_is_required(tmp_path: Path) -> None:
     """No silent 1 mm squares: a calibration without --square would be off in scale by the square size."""
     r = run_cli("calibrate", "--images", str(CHESS), "--pattern", "10x7", "--json", "--no-progress")

@@ -7,12 +7,15 @@ changes by more than 0.5 rad between consecutive 120 Hz frames). Measured figure
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from mirrorlab.plugins.retarget import Chain, Objective, approximate, input_chain
 from mirrorlab.plugins.retarget.solvers import multistart, start_points
 from mirrorlab.plugins.retarget.sources import read_bvh_chain
 from mirrorlab.plugins.retarget.stream import MemorySink, RetargetFilter, compute_for, poses
 
 from .test_stream import ARM, BVH, CMU_MM
+
+pytestmark = pytest.mark.data  # reads ../shared/data
 
 
 def arm_problem() -> tuple[np.ndarray, Chain]:

@@ -34,6 +34,7 @@ def record_until(s: Session, source: str, stream: str, samples: int) -> None:
         s.stop_acquisition()                      # the controller stops first, then the instruments and the file
 
 
+@pytest.mark.data
 @pytest.mark.parametrize("wait", [True, False])
 def test_live_bvh_arm_is_the_batch_result_at_the_optimum_without_flips(tmp_path: Path, wait: bool) -> None:
     with Session.create(tmp_path / "live.h5") as s:

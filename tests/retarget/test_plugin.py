@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from mirrorlab.core import Session
 from mirrorlab.core.registry import get_registry
 
@@ -24,6 +25,7 @@ def test_registered_and_runs_through_a_session(tmp_path) -> None:
     assert np.abs(out["q"] - [0.604032, -0.333016]).max() < 1e-6 and T1_OUT.dof == 2
 
 
+@pytest.mark.data
 def test_recipe_retarget_bvh_runs(tmp_path) -> None:
     out = tmp_path / "r.h5"
     proc = run_cli("run", str(REPO / "sessions" / "retarget_bvh.toml"), "--out", str(out), "--no-progress", timeout=600)
@@ -34,6 +36,7 @@ def test_recipe_retarget_bvh_runs(tmp_path) -> None:
         assert float(np.max(g["f"][()])) < 100.0 and int(g.attrs["published"]) == 2751
 
 
+@pytest.mark.data
 def test_cli_run_on_the_c3d_with_csv_and_figure(tmp_path) -> None:
     from tests.support import SHARED_DATA
 

@@ -65,6 +65,7 @@ def test_csv_and_session_sinks(tmp_path) -> None:
         assert np.allclose(g["q"][:, 0], [float(r[2]) for r in rows[1:]], atol=1e-9)
 
 
+@pytest.mark.data
 def test_bvh_reader_reproduces_the_elbow_angle_range_and_constant_lengths() -> None:
     m = read_bvh_chain(BVH, ARM, scale=CMU_MM, skip=1)
     assert m.joints.shape == (2751, 4, 3) and m.rate == pytest.approx(120.0)
@@ -79,6 +80,7 @@ def test_bvh_reader_reproduces_the_elbow_angle_range_and_constant_lengths() -> N
         read_bvh_chain(BVH, ["RightArm", "RightWing"])
 
 
+@pytest.mark.data
 def test_c3d_and_session_marker_chains(tmp_path) -> None:
     joints = ["ACRO_tip", "EPICl+EPICm", "STYLr+STYLu"]
     m = read_marker_chain(C3D, joints)
