@@ -11,6 +11,11 @@ Usage::
     with CliWorker() as cli:
         result = cli.run("session", "info", "file.h5", timeout=30)
         result.returncode, result.stdout, result.stderr
+
+Each command runs in the working folder it is given (default: the repository); ``sites`` are put on
+the worker's ``PYTHONPATH`` (third-party plugins installed for a test), so a worker serves one set
+of sites. An exception that escapes ``main`` (``--debug`` re-raises) is printed as Python prints an
+uncaught one and gives exit code 1, as for the console script.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ import select
 import subprocess
 import sys
 import tempfile
+import traceback
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +41,9 @@ class CliHang(AssertionError):
 class CliWorker:
     """A worker process running ``mirrorlab`` commands in-process, one at a time."""
 
-    def __init__(self, cwd: Path | None = None) -> None:
+    def __init__(self, cwd: Path | None = None, sites: Sequence[Path] = ()) -> None:
         self.cwd = cwd or REPO
+        self.sites = tuple(sites)
         self.proc: subprocess.Popen[str] | None = None
 
     def __enter__(self) -> CliWorker:
@@ -46,15 +54,19 @@ class CliWorker:
 
     def _start(self) -> subprocess.Popen[str]:
         if self.proc is None or self.proc.poll() is not None:
-            self.proc = subprocess.Popen([sys.executable, "-m", "tests.cli_worker"], cwd=self.cwd,
+            env = dict(os.environ)
+            # the repository first: the worker imports tests.cli_worker from it whatever the sites
+            env["PYTHONPATH"] = os.pathsep.join([str(REPO), *map(str, self.sites), env.get("PYTHONPATH", "")]).rstrip(
+                os.pathsep)
+            self.proc = subprocess.Popen([sys.executable, "-m", "tests.cli_worker"], cwd=self.cwd, env=env,
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         return self.proc
 
-    def run(self, *args: str, timeout: float) -> subprocess.CompletedProcess[str]:
-        """Run ``mirrorlab ARGS``; raises :class:`CliHang` if no answer within ``timeout`` s."""
+    def run(self, *args: str, timeout: float, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+        """Run ``mirrorlab ARGS`` in ``cwd``; raises :class:`CliHang` if no answer within ``timeout`` s."""
         proc = self._start()
         assert proc.stdin is not None and proc.stdout is not None
-        proc.stdin.write(json.dumps(list(args)) + "\n")
+        proc.stdin.write(json.dumps({"argv": list(args), "cwd": str(cwd or self.cwd)}) + "\n")
         proc.stdin.flush()
         ready, _, _ = select.select([proc.stdout], [], [], timeout)
         if not ready:
@@ -83,8 +95,10 @@ def _serve() -> None:
     from mirrorlab.core.cli import main
 
     channel = os.fdopen(os.dup(1), "w")  # replies go here; fds 1 and 2 belong to the commands
-    for request in sys.stdin:
-        argv = json.loads(request)
+    for line in sys.stdin:
+        request = json.loads(line)
+        argv = request["argv"]
+        os.chdir(request["cwd"])
         # "replace": a damaged file's invalid UTF-8 (kept by h5py as surrogates) may be printed
         with tempfile.TemporaryFile("w+", errors="replace") as out, \
                 tempfile.TemporaryFile("w+", errors="replace") as err:
@@ -95,6 +109,9 @@ def _serve() -> None:
                 rc = main(argv)
             except SystemExit as exc:  # argparse's --help and usage errors
                 rc = exc.code if isinstance(exc.code, int) else 1
+            except Exception:  # what --debug re-raises: printed as the interpreter prints it, exit 1
+                traceback.print_exc()
+                rc = 1
             finally:
                 sys.stdout.flush()
                 sys.stderr.flush()

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+from tests.cli_worker import CliWorker
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
@@ -39,13 +42,34 @@ def plugin_site(source: str, distribution: str, entry: str, src: Path, target: P
 
 
 def run_cli(*args: str, sites: tuple[Path, ...] = (), cwd: Path | None = None,
-            timeout: float = 120) -> subprocess.CompletedProcess[str]:
-    """Run the ``mirrorlab`` CLI in a subprocess (with extra site directories on PYTHONPATH)."""
+            timeout: float = 120, fresh: bool = False) -> subprocess.CompletedProcess[str]:
+    """Run the ``mirrorlab`` CLI (with extra site directories for third-party plugins).
+
+    The command goes through ``mirrorlab.core.cli.main``, the console script's code path, in a
+    long-lived worker process per set of ``sites`` (:mod:`tests.cli_worker`): output and exit code
+    are a subprocess's, without paying the interpreter's start-up per command. ``fresh=True`` starts
+    a new process instead (for what a process does at its start or end: signals, imports).
+    """
+    if not fresh:
+        worker = _WORKERS.get(sites)
+        if worker is None:
+            worker = _WORKERS[sites] = CliWorker(sites=sites)
+        return worker.run(*args, timeout=timeout, cwd=cwd or REPO)
     env = dict(os.environ)
     if sites:
         env["PYTHONPATH"] = os.pathsep.join([*map(str, sites), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     return subprocess.run([sys.executable, "-m", "mirrorlab.core.cli", *args], capture_output=True, text=True,
                           env=env, cwd=cwd or REPO, timeout=timeout)
+
+
+#: One CLI worker per set of site directories, for the whole test process.
+_WORKERS: dict[tuple[Path, ...], CliWorker] = {}
+
+
+@atexit.register
+def _close_workers() -> None:
+    for worker in _WORKERS.values():
+        worker.close()
 
 
 #: A recipe whose `run` step fails (the acme drift rate skips more than the 0.3 s recorded).

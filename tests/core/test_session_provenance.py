@@ -190,14 +190,16 @@ action = "run"
 algorithm = "derivatives"
 as = "rough"
 inputs = { time = "/instruments/thermo/temperature/time", values = "/instruments/thermo/temperature/data" }
-# the interpolating spline: stamps of a live device are not exactly uniform (DeviceClock keeps them
-# causal), which the Butterworth method refuses beyond 5 % jitter on a loaded machine
+# splines: the stamps of a live device are not exactly uniform (DeviceClock keeps them causal, so a
+# late anchor shortens one interval), which the uniform-sampling methods refuse beyond 5 % on a
+# loaded machine
 parameters = { lam = 0.0 }
 
 [[steps]]
 action = "run"
 algorithm = "filter"
 inputs = { time = "/instruments/thermo/temperature/time", values = "@smooth/velocity" }
+parameters = { method = "smoothing_spline" }
 """
 
 
