@@ -31,8 +31,8 @@ from .errors import DegenerateGeometry, InvalidPoints
 from .swept import strip_area
 
 __all__ = ["ARC_C", "ARC_H", "ArcGrid", "OptimalWall", "THESIS_WALL_NODES", "WALL_LOWER_BOUND", "arc_grid", "arc_wall",
-           "astroid_motion", "centrodes",
-           "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion", "wall_objective"]
+           "astroid_motion", "centrodes", "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion",
+           "wall_objective"]
 
 FloatArray = NDArray[np.float64]
 #: The thesis's wall nodes: y_i = 0.05 i, i = 0..60 (w_0 = w_60 = 0 fixed; 59 variables), l = 3.
