@@ -1,5 +1,5 @@
 """Shared fixtures: the validation data folder, the third-party test plugins installed into
-temporary site directories.
+temporary site directories; where the snapshot plugin writes its report.
 
 Tests that read the real recordings of ``../shared/data`` are marked ``data`` (or use the
 ``shared_data`` fixture). Without that folder they are skipped with a reason naming it, so a clone
@@ -10,6 +10,7 @@ instead, so the validation against real data cannot silently drop out.
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,10 +30,6 @@ def require_shared_data() -> Path:
     pytest.skip(reason)
 
 
-def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", "data: reads the real recordings of ../shared/data (skipped without it)")
-
-
 def pytest_runtest_setup(item: pytest.Item) -> None:
     if item.get_closest_marker("data") is not None:
         require_shared_data()
@@ -42,6 +39,20 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 def shared_data() -> Path:
     """``../shared/data``: real recordings by other labs (see its README)."""
     return require_shared_data()
+
+
+#: pytest-textual-snapshot's default for ``--snapshot-report``: a path relative to the working
+#: directory, i.e. the clone.
+SNAPSHOT_REPORT_DEFAULT = "snapshot_report.html"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Declare the ``data`` marker. Write the snapshot failure report (an HTML page with the diffs
+    and the whole environment) to the temporary directory instead of the clone, unless
+    ``--snapshot-report`` names a place."""
+    config.addinivalue_line("markers", "data: reads the real recordings of ../shared/data (skipped without it)")
+    if config.getoption("--snapshot-report", default=None) == SNAPSHOT_REPORT_DEFAULT:
+        config.option.snapshot_report = str(Path(tempfile.gettempdir()) / f"mirrorlab-snapshot-report-{os.getpid()}.html")
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,7 @@ from textual.widgets import Header, Input, Static
 from textual_plotext import PlotextPlot
 
 from .forms import ParameterForm
+from .ticks import set_ticks
 from .widgets import KeysFooter
 
 if TYPE_CHECKING:
@@ -40,6 +41,7 @@ class StreamPlot(PlotextPlot):
         plt.ylabel(unit or "value")
         if times:
             plt.plot(times, values, marker="braille", label=self.stream)
+            set_ticks(plt, [times], [values])
         self.refresh()
 
 

@@ -21,9 +21,12 @@ from textual.widgets import Header, Select, Static
 from textual_plotext import PlotextPlot
 
 from . import browse
+from .ticks import set_ticks
 from .widgets import KeysFooter
 
 if TYPE_CHECKING:
+    from textual_plotext.plot import Plot
+
     from .app import MirrorlabApp
 
 #: The kinds of plot, in the order the screen lists them, and what makes each appear.
@@ -100,6 +103,22 @@ def load(file: h5py.File, node: browse.Node, kind: str) -> Series:
     return series
 
 
+def draw(plt: Plot, series: Series) -> None:
+    """Draw ``series`` on the plotext figure ``plt``, replacing what it showed (ticks: :mod:`.ticks`)."""
+    plt.clear_data()
+    plt.clear_figure()
+    plt.title(f"{series.kind}: {series.path}")
+    plt.xlabel(series.xlabel)
+    plt.ylabel(series.ylabel)
+    shown = []
+    for x, y, label in series.lines:
+        finite = np.isfinite(x) & np.isfinite(y)
+        plt.plot(x[finite].tolist(), y[finite].tolist(), marker="braille", label=label)
+        shown.append((x[finite], y[finite]))
+    if shown:
+        set_ticks(plt, [x for x, _ in shown], [y for _, y in shown])
+
+
 class PlotsScreen(Screen[None]):
     """``g`` on the dashboard: pick a dataset in the list (by kind), see its plot; esc goes back."""
 
@@ -158,15 +177,7 @@ class PlotsScreen(Screen[None]):
     def _draw(self, series: object) -> None:
         assert isinstance(series, Series)
         plot = self.query_one("#plot", PlotextPlot)
-        plt = plot.plt
-        plt.clear_data()
-        plt.clear_figure()
-        plt.title(f"{series.kind}: {series.path}")
-        plt.xlabel(series.xlabel)
-        plt.ylabel(series.ylabel)
-        for x, y, label in series.lines:
-            finite = np.isfinite(x) & np.isfinite(y)
-            plt.plot(x[finite].tolist(), y[finite].tolist(), marker="braille", label=label)
+        draw(plot.plt, series)
         plot.refresh()
         self.shown = series
 

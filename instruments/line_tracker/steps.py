@@ -15,7 +15,7 @@ from mirrorlab.core import Parameter, ParameterSet, Step
 from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 
-from .experiments import fit_sinusoid, uncut
+from .experiments import SinusoidFit, fit_sinusoid, uncut
 from .sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
 
 if TYPE_CHECKING:
@@ -23,6 +23,32 @@ if TYPE_CHECKING:
 
 #: Fig. 4.35 and §3.4: amplitude (px, printed and as corrected in spec §6.11), sample period (s), samples per turn.
 THESIS = {"amplitude": 251.0, "sample_period": 0.0788, "samples": 23.4}
+
+
+#: Legend of the scans left out of the fit.
+CLIPPED = "clipped scans: run cut by the sensor's end (not fitted)"
+
+
+def turntable_panels(t: np.ndarray, m: np.ndarray, d: np.ndarray, fit: SinusoidFit, period: float,
+                     truth_t: np.ndarray, truth_px: np.ndarray) -> list[Panel]:
+    """The marks ``m`` (px) and run sizes ``d`` (px) at times ``t`` (s) with the sinusoid ``fit`` of
+    ``period`` (s) and the truth ``truth_px`` at ``truth_t``.
+
+    The scans whose run touches a sensor end (:func:`.experiments.uncut`) are left out of the fit:
+    their centre and size are biased (the marks fall short of the peaks), so they are drawn apart.
+    """
+    whole = uncut(m, d)
+    clipped = ~whole & np.isfinite(m)
+    tt = np.asarray(truth_t, float)
+    w = 2 * np.pi / period
+    return [
+        Panel("mark position on the line sensor", "session time (s)", "pixel (px)", [
+            Trace(t[whole], m[whole], "recorded mark m (fitted)", "o"),
+            Trace(t[clipped], m[clipped], CLIPPED, "x", size=6.0),
+            Trace(tt, fit.centre + fit.amplitude * np.sin(w * tt + fit.phase), f"fitted sinusoid +-{fit.amplitude:.1f} px"),
+            Trace(tt, truth_px, "truth", "--")]),
+        Panel("mark size (adaptive threshold off)", "session time (s)", "run size d (px)",
+              [Trace(t, d, "recorded d", ".-"), Trace(t[clipped], d[clipped], CLIPPED, "x", size=6.0)])]
 
 
 class TurntableReport(Step):
@@ -61,17 +87,11 @@ class TurntableReport(Step):
                  "stamping delay at up to 860 px/s)",
                  f"run size: {np.nanmean(lit):.0f} px on the lit side, {np.nanmean(dark):.0f} px on the dark side "
                  "(Fig. 4.34: wider on the lit side)"]
-        w = 2 * np.pi / values["period"]
         tt = np.linspace(t[0], t[-1], 800)
-        figure = plot_traces(figures_folder(session, values["figures"]) / "turntable_trace.png", [
-            Panel("mark position on the line sensor", "session time (s)", "pixel (px)", [
-                Trace(t, m, "recorded mark m", "o"),
-                Trace(tt, fit.centre + fit.amplitude * np.sin(w * tt + fit.phase),
-                      f"fitted sinusoid +-{fit.amplitude:.1f} px"),
-                Trace(tt, angle_to_pixel(np.interp(tt, tr["time"], tr["target_angles"][:, 0])), "truth", "--")]),
-            Panel("mark size (adaptive threshold off)", "session time (s)", "run size d (px)",
-                  [Trace(t, d, "recorded d", ".-")])],
-            "line tracker on the turntable (Fig. 4.35)")
+        truth_px = angle_to_pixel(np.interp(tt, tr["time"], tr["target_angles"][:, 0]))
+        figure = plot_traces(figures_folder(session, values["figures"]) / "turntable_trace.png",
+                             turntable_panels(t, m, d, fit, values["period"], tt, truth_px),
+                             "line tracker on the turntable (Fig. 4.35)")
         session.write_group(f"report/turntable_{root.rpartition('/')[2]}",
                             {"amplitude_px": fit.amplitude, "sample_period_s": fit.sample_period,
                              "centre_px": fit.centre, "rms_px": fit.rms},

@@ -26,6 +26,18 @@ THESIS = {"cycle": 0.080, "accuracy": 5.0, "line_period": 50.0, "ellipse_period"
 FOUND_DEG = 1.0                  # the search has found the target once within this
 
 
+def search_panel(theta: np.ndarray, target: np.ndarray) -> Panel:
+    """The platform's search path ``theta`` (n, 2) deg towards ``target`` (2,) deg.
+
+    The path ends in a cluster of points around the target, so the target is drawn on top of
+    them, as a large black star.
+    """
+    return Panel("search path of the platform", "theta1 (deg)", "theta2 (deg)", [
+        Trace(theta[:, 0], theta[:, 1], "platform after each cycle", "o-"),
+        Trace([0.0, target[0]], [0.0, target[1]], "straight line to the target", ":"),
+        Trace([target[0]], [target[1]], "target (truth)", "k*", size=14.0, on_top=True)], equal=True)
+
+
 class UltrasonicReport(Step):
     """``action = "ultrasonic_report"``: the recorded search and the stage experiment against §2.6."""
 
@@ -65,12 +77,8 @@ class UltrasonicReport(Step):
                  f"search cycle: {1000 * np.median(np.diff(t)):.0f} ms at {distance / 1000:.2f} m "
                  f"(thesis: about {1000 * THESIS['cycle']:.0f} ms at 1.3 m)"]
         folder = figures_folder(session, values["figures"])
-        figures = [plot_traces(folder / "ultrasonic_search.png", [
-            Panel("search path of the platform", "theta1 (deg)", "theta2 (deg)", [
-                Trace(theta[:, 0], theta[:, 1], "platform after each cycle", "o-"),
-                Trace([0.0, target[0]], [0.0, target[1]], "straight line to the target", ":"),
-                Trace([target[0]], [target[1]], "target (truth)", "x")], equal=True)],
-            "ultrasonic tracker: search from 12 deg off axis (Fig. 4.19)")]
+        figures = [plot_traces(folder / "ultrasonic_search.png", [search_panel(theta, target)],
+                               "ultrasonic tracker: search from 12 deg off axis (Fig. 4.19)")]
         if values["stage"]:
             runs = {f"line, {values['stroke']:.0f} mm stroke, {THESIS['line_period']:.0f} s/cycle":
                     stage_tracking("stage_line", values["stroke"], 0.0, THESIS["line_period"], seed=values["seed"]),

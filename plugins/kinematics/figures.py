@@ -50,7 +50,7 @@ def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequenc
 
 def derivatives_figure(t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike, velocity: ArrayLike,
                        acceleration: ArrayLike, title: str = "") -> Figure:
-    """Positions (x, y, z), speed |v| and |a| of markers over time.
+    """Positions (x, y, z) in mm, speed |v| in mm/s and |a| in mm/s² of markers over time.
 
     Parameters
     ----------
@@ -69,11 +69,11 @@ def derivatives_figure(t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike,
     for m in shown:
         for c, ls in enumerate(("-", "--", ":")):
             ax[0].plot(tt, xs[:, m, c], ls, lw=0.8, color=f"C{m % 10}", label=labels[m] if c == 0 else None)
-        ax[1].plot(tt, _norm(v[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
-        ax[2].plot(tt, _norm(a[:, m]) / 1000.0, lw=0.8, color=f"C{m % 10}", label=labels[m])
+        ax[1].plot(tt, _norm(v[:, m]), lw=0.8, color=f"C{m % 10}", label=labels[m])
+        ax[2].plot(tt, _norm(a[:, m]), lw=0.8, color=f"C{m % 10}", label=labels[m])
     ax[0].set_ylabel("position (mm)\nx solid, y dashed, z dotted")
-    ax[1].set_ylabel("speed |v| (m/s)")
-    ax[2].set_ylabel("|a| (m/s²)")
+    ax[1].set_ylabel("speed |v| (mm/s)")
+    ax[2].set_ylabel("|a| (mm/s²)")
     ax[2].set_xlabel("time (s)")
     more = len(labels) - len(shown)
     ax[1].legend(fontsize=7, ncol=2, title=f"+{more} more not drawn" if more > 0 else None)

@@ -115,9 +115,10 @@ def cmd_optimal_wall(args: argparse.Namespace) -> int:
         from .figures import plot_walls
 
         y = np.linspace(0, values["l"], 101)
+        optimal = f"optimal wall, area {run['area']:.4f}"
         figs.append(str(plot_walls(Path(args.figures) / "optimal_wall.png",
-                                   {"vertical wall": (0 * y, y), f"optimal wall, area {run['area']:.4f}":
-                                    (out["w"], out["nodes"])}, title="optimal wall")))
+                                   {"vertical wall": (0 * y, y), optimal: (out["w"], out["nodes"])},
+                                   title="optimal wall", polylines=[optimal])))
     run["w"] = np.round(out["w"], 6).tolist()
     run["figures"] = figs
     return _print(args, run, format_walls(None, [run]) + "".join(f"\nfigure: {f}" for f in figs))

@@ -7,7 +7,7 @@ path. Every figure has a title, axis labels with units and a legend.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike
 
-__all__ = ["plot_centrodes", "plot_four_bar", "plot_swept", "plot_walls"]
+__all__ = ["four_bar_figure", "plot_centrodes", "plot_four_bar", "plot_swept", "plot_walls", "walls_figure"]
 
 LINK_COLOURS = {0: ("ground", "0.4"), 1: ("input", "tab:blue"), 2: ("coupler", "tab:orange"), 3: ("output", "tab:green"),
                 -1: ("unassigned", "tab:red")}
@@ -32,12 +32,7 @@ def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
 
 def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLike, joints: ArrayLike,
                   title: str = "reconstructed four-bar", every: int = 5, unit: str = "mm") -> Path:
-    """The tracked markers coloured by link, with the reconstructed linkage drawn every ``every`` frames.
-
-    Parameters
-    ----------
-    tracks : (T, M, 2) marker tracks; link : (M,) link index (0 ground, 1 input, 2 coupler,
-        3 output, -1 none); joints : (T, 4, 2) G1, J1, J2, G2.
+    """Write :func:`four_bar_figure` to the PNG file ``path``.
 
     Examples
     --------
@@ -46,8 +41,22 @@ def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLi
     >>> plot_four_bar(os.path.join(tempfile.mkdtemp(), "f.png"), j, [0, 1, 2, 3], j).stat().st_size > 0
     True
     """
+    return _save(four_bar_figure(tracks, link, joints, title, every, unit), path)
+
+
+def four_bar_figure(tracks: ArrayLike, link: ArrayLike, joints: ArrayLike, title: str = "reconstructed four-bar",
+                    every: int = 5, unit: str = "mm") -> Figure:
+    """The tracked markers coloured by link, with the reconstructed linkage drawn every ``every`` frames.
+
+    The markers fill the plane of the mechanism, so the legend stands to the right of the axes.
+
+    Parameters
+    ----------
+    tracks : (T, M, 2) marker tracks; link : (M,) link index (0 ground, 1 input, 2 coupler,
+        3 output, -1 none); joints : (T, 4, 2) G1, J1, J2, G2.
+    """
     tr, lk, J = np.asarray(tracks, float), np.asarray(link), np.asarray(joints, float)
-    fig = Figure(figsize=(7, 5.5))
+    fig = Figure(figsize=(9, 5.5), layout="constrained")
     ax = fig.add_subplot()
     for k, (name, colour) in LINK_COLOURS.items():
         cols = np.flatnonzero(lk == k)
@@ -62,8 +71,8 @@ def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLi
     ax.set_xlabel(f"x ({unit})")
     ax.set_ylabel(f"y ({unit})")
     ax.set_title(title)
-    ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    fig.legend(fontsize=8, loc="outside right upper")
+    return fig
 
 
 def plot_swept(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, region: shapely.Geometry | None = None,
@@ -118,15 +127,36 @@ def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fix
 
 
 def plot_walls(path: os.PathLike[str] | str, walls: Mapping[str, tuple[ArrayLike, ArrayLike]],
-               title: str = "guiding walls", unit: str = "l units") -> Path:
-    """Walls ``x = w(y)`` drawn as curves, labelled by name (e.g. with their areas)."""
+               title: str = "guiding walls", unit: str = "l units", polylines: Collection[str] = ()) -> Path:
+    """Write :func:`walls_figure` to the PNG file ``path``."""
+    return _save(walls_figure(walls, title, unit, polylines), path)
+
+
+def walls_figure(walls: Mapping[str, tuple[ArrayLike, ArrayLike]], title: str = "guiding walls",
+                 unit: str = "l units", polylines: Collection[str] = ()) -> Figure:
+    """Walls ``x = w(y)`` drawn as curves, labelled by name (e.g. with their areas).
+
+    The walls named in ``polylines`` are the optimal wall's polyline (values at its nodes): their
+    nodes are marked, and the first node below the top is pointed out: it lies right of the next
+    one because a straight first segment is the polyline's stand-in for a wall that leaves the top
+    horizontally (as eq. 6.3's does); lowering it to the next node's abscissa sweeps more.
+    """
     fig = Figure(figsize=(6.5, 6))
     ax = fig.add_subplot()
     for name, (x, y) in walls.items():
-        ax.plot(np.asarray(x, float), np.asarray(y, float), "-", lw=1.5, label=name)
+        xs, ys = np.asarray(x, float), np.asarray(y, float)
+        if name in polylines:
+            line, = ax.plot(xs, ys, "-o", lw=1.5, ms=2.5, label=f"{name} (polyline, nodes marked)")
+            top = int(np.argmax(ys))
+            first = top - 1 if top > 0 and ys[top - 1] < ys[top] else top + 1     # the node next to the top
+            ax.annotate("first node: the straight first segment\nstands in for a horizontal start",
+                        (xs[first], ys[first]), xytext=(-12, -48), textcoords="offset points", ha="right",
+                        fontsize=7, color=line.get_color(), arrowprops={"arrowstyle": "->", "color": line.get_color()})
+        else:
+            ax.plot(xs, ys, "-", lw=1.5, label=name)
     ax.axvline(0.0, color="0.7", lw=0.8)             # x stretched: the walls bulge by about l / 8
     ax.set_xlabel(f"x ({unit})")
     ax.set_ylabel(f"y ({unit})")
     ax.set_title(title)
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return fig

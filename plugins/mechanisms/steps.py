@@ -166,12 +166,14 @@ class WallReport(Step):
         best = walls[-1].outputs
         a, b = wall_motion(best["w"], 3.0, n, best["nodes"])
         y = np.linspace(0, 3, 301)
+        optimal = f"optimal wall, {runs[-1]['area']:.4f}"
         curves = {"vertical wall (astroid)": (0 * y, y),
                   f"eq. 6.3, h = {eq63[0]:.2f}": tuple(eq63_motion(3.0, eq63[0], n)[0].T),
-                  f"optimal wall, {runs[-1]['area']:.4f}": (best["w"], best["nodes"])}
+                  optimal: (best["w"], best["nodes"])}
         if arc_best is not None:
             curves[f"best arc c = {arc_best[0]:.1f}, h = {arc_best[1]:.1f}"] = (arc_wall(arc_best[0], arc_best[1])(y), y)
-        figures = [plot_walls(folder / "walls.png", curves, title="walls guiding A (l = 3; x axis stretched)"),
+        figures = [plot_walls(folder / "walls.png", curves, title="walls guiding A (l = 3; x axis stretched)",
+                              polylines=[optimal]),
                    plot_swept(folder / "optimal_wall_swept.png", a, b, swept_region(a, b),
                               title="region swept with the optimal wall", unit="l units"),
                    plot_centrodes(folder / "eq63_centrodes.png", *eq63_motion(3.0, 2.2, n),

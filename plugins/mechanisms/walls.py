@@ -30,12 +30,20 @@ from scipy.optimize import brentq, minimize, minimize_scalar
 from .errors import DegenerateGeometry, InvalidPoints
 from .swept import strip_area
 
-__all__ = ["ARC_C", "ARC_H", "ArcGrid", "OptimalWall", "THESIS_WALL_NODES", "arc_grid", "arc_wall", "astroid_motion", "centrodes",
-           "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion", "wall_objective"]
+__all__ = ["ARC_C", "ARC_H", "ArcGrid", "OptimalWall", "THESIS_WALL_NODES", "WALL_LOWER_BOUND", "arc_grid", "arc_wall",
+           "astroid_motion", "centrodes", "eq63_motion", "eq63_theta_q", "optimal_wall", "wall_area", "wall_motion",
+           "wall_objective"]
 
 FloatArray = NDArray[np.float64]
 #: The thesis's wall nodes: y_i = 0.05 i, i = 0..60 (w_0 = w_60 = 0 fixed; 59 variables), l = 3.
 THESIS_WALL_NODES = 0.05 * np.arange(61)
+#: The walls :func:`optimal_wall` searches stay right of the y axis (``w >= 0``). This loses no
+#: optimum: the starting (vertical) rod already covers x = 0 at every height, so moving a part of
+#: the wall that lies left of the axis onto it leaves every strip's right end where it is and moves
+#: every rod that touched it to the right, never sweeping more. Without the bound the low nodes are
+#: nearly free (their rods are seldom an extreme crossing) and a solver leaves them wherever a
+#: step put them: a dip to w = -0.02 at y = 0.15 that sweeps 6e-5 more than the clipped wall.
+WALL_LOWER_BOUND = 0.0
 
 
 def astroid_motion(l: float = 3.0, positions: int = 1000) -> tuple[FloatArray, FloatArray]:
@@ -340,7 +348,7 @@ class OptimalWall:
 
     Attributes
     ----------
-    w : (61,) wall abscissae at :data:`THESIS_WALL_NODES` (ends 0).
+    w : (61,) wall abscissae at :data:`THESIS_WALL_NODES` (ends 0; all >= :data:`WALL_LOWER_BOUND`).
     area_grid : the objective at the optimum (its own ``grid`` positions x strips and quadrature).
     area : the converged exact area of the wall (strip formula with A's path, ``final`` grid; agrees
         with the polygon union to < 1e-6).
@@ -371,11 +379,21 @@ class OptimalWall:
     thesis_positions: int
 
 
+def _descent_gradient(g: FloatArray, x: FloatArray) -> FloatArray:
+    """The gradient without the components the lower bound stops (at the bound, the area rising with x)."""
+    return np.where((x <= WALL_LOWER_BOUND) & (g > 0.0), 0.0, g)
+
+
 def _fletcher_reeves(f: Callable[[FloatArray], tuple[float, FloatArray]], x0: FloatArray, maxiter: int,
                      gtol: float) -> tuple[FloatArray, int]:
-    """Fletcher-Reeves conjugate gradients with a Brent line search, restarted every n steps."""
-    x = x0.copy()
+    """Fletcher-Reeves conjugate gradients with a Brent line search, restarted every n steps, on ``x >= 0``.
+
+    The thesis's method, kept to the bound by projection (each trial point is ``max(x + t d, 0)``)
+    and by dropping the gradient components the bound stops (see :data:`WALL_LOWER_BOUND`).
+    """
+    x = np.maximum(x0, WALL_LOWER_BOUND)
     fx, g = f(x)
+    g = _descent_gradient(g, x)
     d = -g
     it = 0
     for it in range(1, maxiter + 1):
@@ -384,15 +402,16 @@ def _fletcher_reeves(f: Callable[[FloatArray], tuple[float, FloatArray]], x0: Fl
         dn = np.abs(d).max()
         if dn == 0:
             break
-        res = minimize_scalar(lambda t, x=x, d=d: f(x + t * d)[0], bounds=(0.0, 0.2 / dn), method="bounded",
-                              options={"xatol": 1e-6 / dn})
+        res = minimize_scalar(lambda t, x=x, d=d: f(np.maximum(x + t * d, WALL_LOWER_BOUND))[0], bounds=(0.0, 0.2 / dn),
+                              method="bounded", options={"xatol": 1e-6 / dn})
         if not res.fun < fx:
             if np.array_equal(d, -g):
                 break
             d = -g
             continue
-        x = x + res.x * d
+        x = np.maximum(x + res.x * d, WALL_LOWER_BOUND)
         fx, g_new = f(x)
+        g_new = _descent_gradient(g_new, x)
         if np.linalg.norm(g_new) < gtol:
             break
         beta = np.dot(g_new, g_new) / np.dot(g, g)
@@ -411,14 +430,16 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
     The objective is the strip-formula area on ``grid`` (positions, strips); its gradient is exact
     piecewise (each strip's extreme crossing points move with two wall nodes), so no numerical
     differentiation is needed (the thesis differentiated numerically: 32 756 area calls, 50 h).
+    Both solvers keep the wall right of the y axis (:data:`WALL_LOWER_BOUND`), which loses no optimum.
     The optimum is re-evaluated on ``final`` with the exact quadrature (``area``), with the
     positions-only quadrature (``area_positions``) and with the thesis's discretisation
     (``area_thesis``, positions only, ``thesis_positions`` positions).
 
     Parameters
     ----------
-    method : ``"lbfgsb"`` (scipy L-BFGS-B) or ``"fletcher_reeves"`` (the thesis's method: nonlinear
-        conjugate gradients, Fletcher-Reeves update, line search, restart every 59 steps).
+    method : ``"lbfgsb"`` (scipy L-BFGS-B, with the bound) or ``"fletcher_reeves"`` (the thesis's
+        method: nonlinear conjugate gradients, Fletcher-Reeves update, line search, restart every 59
+        steps; projected onto the bound).
     l : rod length (the thesis: 3).
     grid, final : (positions, strips) of the optimisation and of the final evaluation.
     objective : ``"exact"`` (strip formula with A's path crossing, converged to O(1/positions^2))
@@ -426,7 +447,8 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
         then exploits that quadrature's low bias on bulged walls).
     thesis_positions : positions of the thesis-like evaluation.
     maxiter, gtol : iteration limit and gradient-norm tolerance.
-    start : initial inner abscissae (59); default the vertical wall (area 3 pi l^2 / 32).
+    start : initial inner abscissae (59; negative ones start at 0); default the vertical wall (area
+        3 pi l^2 / 32).
     progress : called as ``progress(evaluations)`` before each evaluation of the objective; an
         exception it raises (a cancelled run) ends the optimisation.
 
@@ -447,7 +469,8 @@ def optimal_wall(method: Literal["lbfgsb", "fletcher_reeves"] = "lbfgsb", l: flo
     x0 = np.zeros(len(THESIS_WALL_NODES) - 2) if start is None else np.asarray(start, float).ravel()
     t0 = time.perf_counter()
     if method == "lbfgsb":
-        res = minimize(f, x0, jac=True, method="L-BFGS-B", options={"maxiter": maxiter, "gtol": gtol, "maxcor": 30})
+        res = minimize(f, x0, jac=True, method="L-BFGS-B", bounds=[(WALL_LOWER_BOUND, None)] * len(x0),
+                       options={"maxiter": maxiter, "gtol": gtol, "maxcor": 30})
         x, iterations = res.x, int(res.nit)
     elif method == "fletcher_reeves":
         x, iterations = _fletcher_reeves(f, x0, maxiter, gtol)

@@ -407,28 +407,38 @@ def angular_figure(r: DemoReport) -> Figure:
     Measured values against the analytic motion and the model evaluated at the measured θ. The
     accelerations of the end frames (:func:`measured_frames`) are drawn hollow: they are the
     spline's end condition, not measurements, and are left out of the printed RMS.
+
+    The panels of a row share one y scale that includes zero, so the crank's nearly constant
+    θ̇ is not blown up into a curve of its noise; each panel's title states its RMS deviation
+    from the analytic value instead. The analytic motion is a wide grey band with the model drawn over it
+    dashed, so the model stays visible where the two coincide.
     """
     fig = Figure(figsize=(10, 7), layout="constrained")
-    axes = fig.subplots(2, 2, sharex=True)
-    panels = (("theta_dot", "input crank", "θ̇ (rad/s)"), ("phi_dot", "output rocker", "φ̇ (rad/s)"),
-              ("theta_ddot", "input crank", "θ̈ (rad/s²)"), ("phi_ddot", "output rocker", "φ̈ (rad/s²)"))
-    for ax, (k, title, ylabel) in zip(axes.ravel(), panels, strict=True):
+    axes = fig.subplots(2, 2, sharex=True, sharey="row")
+    panels = (("theta_dot", "input crank", "θ̇ (rad/s)", "rad/s"), ("phi_dot", "output rocker", "φ̇ (rad/s)", "rad/s"),
+              ("theta_ddot", "input crank", "θ̈ (rad/s²)", "rad/s²"), ("phi_ddot", "output rocker", "φ̈ (rad/s²)", "rad/s²"))
+    for ax, (k, title, ylabel, unit) in zip(axes.ravel(), panels, strict=True):
         if k in r.analytic:
-            ax.plot(r.time, r.analytic[k], "-", color="k", lw=1.2, label="analytic")
+            ax.plot(r.time, r.analytic[k], "-", color="0.6", lw=4.0, solid_capstyle="butt", zorder=2.0,
+                    label="analytic")
         if "model_" + k in r.kinematics:
-            ax.plot(r.time, r.kinematics["model_" + k], "--", color="C1", lw=1.0, label="model at measured θ")
+            ax.plot(r.time, r.kinematics["model_" + k], "--", color="C1", lw=1.5, zorder=2.5,
+                    label="model at measured θ")
         if k in r.kinematics:
             keep = measured_frames(k, len(r.kinematics[k]))
-            ax.plot(r.time[keep], r.kinematics[k][keep], "o", color="C0", ms=3.5, label="measured")
+            ax.plot(r.time[keep], r.kinematics[k][keep], "o", color="C0", ms=3.5, zorder=3.0, label="measured")
             if not keep.all():
-                ax.plot(r.time[~keep], r.kinematics[k][~keep], "o", mfc="none", color="C0", ms=5,
+                ax.plot(r.time[~keep], r.kinematics[k][~keep], "o", mfc="none", color="C0", ms=5, zorder=3.0,
                         label="end frames: spline end condition (not in RMS)")
+        if k in r.kinematic_rms:
+            title += f"\nRMS of measured − analytic: {r.kinematic_rms[k]:.2g} {unit}"
+        ax.axhline(0.0, color="0.3", lw=0.6, zorder=1.0)      # zero in every row's range, drawn as a reference
         ax.set_title(title, fontsize=10)
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("time (s)")
-    handles = {h.get_label(): h for ax in axes.ravel() for h in ax.get_lines()}
+    handles = {h.get_label(): h for ax in axes.ravel() for h in ax.get_lines() if not h.get_label().startswith("_")}
     fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("RSSR angular velocity and acceleration: measured vs analytic")
     return fig

@@ -92,3 +92,9 @@ def test_camera(file_app: MirrorlabApp, snap_compare) -> None:
         await pilot.pause()
 
     assert snap_compare(file_app, run_before=frame, terminal_size=(80, 24))
+
+
+def test_snapshot_report_is_written_outside_the_clone(request: pytest.FixtureRequest) -> None:
+    """A failing snapshot writes an HTML report: not into the clone, where it would be committed."""
+    report = Path(request.config.getoption("--snapshot-report"))
+    assert report.is_absolute() and REPO.resolve() not in report.resolve().parents
