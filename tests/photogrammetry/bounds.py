@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 from mirrorlab.plugins.photogrammetry.cameras import PlaneCalibration
 from mirrorlab.plugins.photogrammetry.central import CentralCamera, reconstruct_chain_central
-from mirrorlab.plugins.photogrammetry.mirror import MirrorTriangulation, RayIntersection
 from numpy.typing import ArrayLike
 
 from tests.tolerances import roundoff
@@ -82,20 +81,39 @@ def normal_condition(P: np.ndarray, Pv: np.ndarray) -> float:
     return float(s[0] / s[1] / a.min())
 
 
-def normal_roundoff(P: np.ndarray, Pv: np.ndarray) -> float:
-    """Rounding bound of a unit normal estimated from the pairs: ~10 roundings per ray and cross product."""
-    return roundoff(cond=normal_condition(P, Pv), ops=10)
+def normal_roundoff(P: np.ndarray, Pv: np.ndarray, ray_error: float = 0.0) -> float:
+    """Bound of a unit normal estimated from the pairs: ~10 roundings per ray and cross product, plus
+    rays that carry an angular error ``ray_error`` (rad) from a camera model, amplified alike."""
+    return roundoff(cond=normal_condition(P, Pv), ops=10) + normal_condition(P, Pv) * ray_error
 
 
-def triangulation_roundoff(result: MirrorTriangulation | RayIntersection, scale: float) -> float:
-    """Rounding bound (mm) of a ray intersection with rays at |cos| = c.
+def triangulation_condition(cos_angle: ArrayLike, views: ArrayLike = 2) -> float:
+    """Condition of a ray intersection with rays at |cos| = c.
 
     The closest point's normal matrix sum(I - d d^T) over V views has eigenvalues in [1 - c, V], so
     condition V / (1 - c); the two-ray closed form (3.5)-(3.6) cancels in |u1|^2 |u2|^2 (1 - k^2),
-    2 / (1 - k^2) ~ 1 / (1 - c) as well. ``scale``: the largest coordinate or depth involved (mm).
+    2 / (1 - k^2) ~ 1 / (1 - c) as well.
     """
-    views = getattr(result, "n_views", 2)
-    return roundoff(cond=float(np.nanmax(views / (1 - result.cos_angle))), scale=scale, ops=10)
+    return float(np.nanmax(np.asarray(views) / (1 - np.asarray(cos_angle))))
+
+
+def triangulation_roundoff(cos_angle: ArrayLike, scale: float, views: ArrayLike = 2, ray_error: float = 0.0) -> float:
+    """Bound (mm) of a ray intersection: ~10 roundings of ``scale`` (the largest coordinate or depth
+    involved, mm), plus rays with an angular error ``ray_error`` (rad) moving the point by up to
+    ``scale * ray_error``, both amplified by :func:`triangulation_condition`."""
+    kappa = triangulation_condition(cos_angle, views)
+    return roundoff(cond=kappa, scale=scale, ops=10) + kappa * scale * ray_error
+
+
+def plane_ray_error(cal: PlaneCalibration, image_xy: ArrayLike, plane_scale: float) -> float:
+    """Angular error (rad) of ``cal.rays`` at ``image_xy``: the map's bound over the distance from the
+    camera centre to the calibration plane (the shortest |C - F1|)."""
+    return map_roundoff(cal, image_xy, plane_scale) / abs(cal.camera_center[2] - cal.plane_z)
+
+
+#: Angular error (rad) of PinholeCamera.rays: cv2.undistortPoints iterates until its step is 1e-14
+#: (normalised image units, i.e. radians near the axis; cameras.PinholeCamera.normalized).
+UNDISTORT_TOL = 1e-14
 
 
 def parallel_roundoff(P: np.ndarray, lengths: np.ndarray) -> float:

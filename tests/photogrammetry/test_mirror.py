@@ -61,7 +61,7 @@ def test_spec_fixture_round_trip() -> None:
     r = triangulate_mirror(F1, G, res.normal, u1, u2p)
     # res.normal carries its own rounding: F2 moves by <= 4 |F1 - G| |dn|, the markers by as much
     dn = normal_roundoff(P, Pv) * 4 * np.linalg.norm(F1 - G)
-    bound = triangulation_roundoff(r, reach) + dn
+    bound = triangulation_roundoff(r.cos_angle, reach) + dn
     assert np.abs(r.points - MARKERS).max() <= bound
     assert r.gap.max() <= bound
     assert np.all(r.a1 > 0) and np.all(r.a2 > 0) and not r.weak.any()
@@ -160,9 +160,9 @@ def test_exact_rays_round_trip(scene) -> None:
     r = triangulate_mirror(F, g, n, u1 * 3.7, u2p)  # ray length is irrelevant
     # coordinates, the virtual camera and the depths all enter the closed form
     scale = max(np.abs(F).max(), np.abs(r.virtual_center).max(), np.abs(pts).max(), np.nanmax(r.a2))
-    assert np.abs(r.points - pts).max() <= triangulation_roundoff(r, scale)
-    assert r.gap.max() <= triangulation_roundoff(r, scale)
-    assert np.abs(r.a1 - np.linalg.norm(pts - F, axis=1)).max() <= triangulation_roundoff(r, scale)
+    assert np.abs(r.points - pts).max() <= triangulation_roundoff(r.cos_angle, scale)
+    assert r.gap.max() <= triangulation_roundoff(r.cos_angle, scale)
+    assert np.abs(r.a1 - np.linalg.norm(pts - F, axis=1)).max() <= triangulation_roundoff(r.cos_angle, scale)
 
 
 @settings(max_examples=60, deadline=None)
@@ -200,8 +200,8 @@ def test_multi_mirror_with_missing_views() -> None:
     r = triangulate_mirrors(F, mirrors, real[keep], virt[keep])
     # the virtual cameras lie up to 2 x 1500 mm from the origin: that is the computation's scale
     scale = max(np.abs(F).max(), max(np.abs(reflect(F, g, n)).max() for g, n in mirrors))
-    assert np.all(np.abs(r.points - pts[keep]).max(axis=1) <= triangulation_roundoff(r, scale))
-    assert r.residual.max() <= triangulation_roundoff(r, scale)
+    assert np.all(np.abs(r.points - pts[keep]).max(axis=1) <= triangulation_roundoff(r.cos_angle, scale, r.n_views))
+    assert r.residual.max() <= triangulation_roundoff(r.cos_angle, scale, r.n_views)
     np.testing.assert_array_equal(r.n_views, seen[keep])
     with pytest.raises(DegenerateGeometry, match="fewer than two views"):
         triangulate_mirrors(F, mirrors, real, virt)
@@ -219,7 +219,8 @@ def test_general_path_matches_closed_form() -> None:
     general = intersect_rays(np.r_[o, [[9.0, 9, 9]]], d3, check_front=False)
     # both rounded, each within the rays' conditioning (angles ~ 17 deg) at the depths' scale
     scale = np.abs(closed.depths).max() + np.abs(o).max()
-    bound = triangulation_roundoff(closed, scale) + triangulation_roundoff(general, scale)
+    bound = (triangulation_roundoff(closed.cos_angle, scale, closed.n_views)
+             + triangulation_roundoff(general.cos_angle, scale, general.n_views))
     assert abs_err(general.points, closed.points) <= bound
     assert abs_err(general.residual, closed.residual) <= bound
     assert abs_err(general.depths[:, :2], closed.depths) <= bound
@@ -307,7 +308,7 @@ def test_optimal_is_exact_without_noise() -> None:
     # the midpoint start is exact to rounding (pixels ~1e3 through K^-1: ~eps |xy| / f relative per
     # ray); least_squares stops at xtol = 1e-12 relative (mirror.py), which dominates
     scale = max(np.abs(F1).max(), np.abs(r.virtual_center).max(), np.nanmax(r.a2))
-    assert np.abs(r.points - pts).max() <= triangulation_roundoff(r, scale) + 1e-12 * scale
+    assert np.abs(r.points - pts).max() <= triangulation_roundoff(r.cos_angle, scale) + 1e-12 * scale
     # 1500 px focal length at ~1 m: 1.5 px per mm of the bound above, ~1e-8 px; 1e-6 px is looser,
     # a check that the residuals vanish, not of rounding
     assert r.reprojection.max() < 1e-6

@@ -14,6 +14,8 @@ from mirrorlab.plugins.photogrammetry.central import CentralCamera
 from mirrorlab.plugins.photogrammetry.errors import RayMissesSphere
 from mirrorlab.plugins.photogrammetry.mirror import triangulate_mirror
 from mirrorlab.plugins.photogrammetry.sensitivity import (
+    THESIS_GRID_X,
+    THESIS_GRID_Y,
     THESIS_MIRROR_ERRORS,
     MirrorScene,
     accuracy_statistics,
@@ -29,7 +31,7 @@ from mirrorlab.plugins.photogrammetry.sensitivity import (
     table_rotation,
 )
 
-from tests.photogrammetry.bounds import triangulation_roundoff
+from tests.photogrammetry.bounds import plane_ray_error, triangulation_roundoff
 from tests.tolerances import roundoff
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -186,13 +188,14 @@ def test_fig_2_4(validation):
 def test_mirror_pipeline_round_trip(scene):
     V = np.array([[100.0, 50.0, 300.0], [-150.0, -100.0, 200.0], [250.0, 120.0, 420.0]])
     U, W = scene.image_points(V)
-    # exact plane map (film parallel to the plane, design condition ~7: ~1e-10 mm on the plane, rays
-    # ~1.4 m long) and a triangulation with rays ~45 deg apart: the midpoint's rounding bound at the
-    # coordinates' scale dominates
+    # exact plane map (film parallel to the plane) whose rounding turns the rays, then a triangulation
+    # with rays ~45 deg apart
     cal = scene.calibration
     r = triangulate_mirror(scene.camera_center, scene.mirror_point, scene.normal, cal.rays(U), cal.rays(W))
     scale = max(np.abs(scene.camera_center).max(), np.abs(r.virtual_center).max(), r.a2.max())
-    np.testing.assert_allclose(mirror_reconstruct(scene, U, W), V, rtol=0, atol=triangulation_roundoff(r, scale))
+    ray_error = plane_ray_error(cal, np.r_[U, W], max(np.abs(THESIS_GRID_X).max(), np.abs(THESIS_GRID_Y).max()))
+    np.testing.assert_allclose(mirror_reconstruct(scene, U, W), V, rtol=0,
+                               atol=triangulation_roundoff(r.cos_angle, scale, ray_error=ray_error))
     F2 = scene.camera_center - 2 * np.dot(scene.camera_center - scene.mirror_point, scene.normal) * scene.normal
     np.testing.assert_allclose(F2, [-1105.289, 202.600, -394.432], atol=5e-4)  # 3 decimals: half a unit
 

@@ -68,7 +68,7 @@ def test_fixed_ray_reading_f_error_identity(scene):
     # carries g's error once more
     cal = scene.calibration
     r = triangulate_mirror(scene.camera_center, scene.mirror_point, scene.normal, cal.rays(U), cal.rays(V))
-    one = triangulation_roundoff(r, max(np.abs(scene.camera_center).max(), np.abs(r.virtual_center).max(), r.a2.max()))
+    one = triangulation_roundoff(r.cos_angle, max(np.abs(scene.camera_center).max(), np.abs(r.virtual_center).max(), r.a2.max()))
     for dF in np.eye(3):
         eF = _fixed_ray_point(scene, U, V, dF=dF) - P0
         np.testing.assert_allclose(eF, dF - (n @ dF) * g, rtol=0, atol=4 * one)
