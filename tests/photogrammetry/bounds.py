@@ -23,7 +23,7 @@ def map_roundoff(cal: PlaneCalibration, image_xy: ArrayLike, plane_scale: float)
     applied to plane coordinates of magnitude ``plane_scale``. ops = 6 terms of a design row.
     """
     u = (np.asarray(image_xy, float) - cal.center) / cal.scale
-    reach = (1.0 + np.linalg.norm(u, axis=-1).max()) ** 2
+    reach = (1.0 + np.nanmax(np.linalg.norm(u, axis=-1))) ** 2  # NaN: a point not seen
     return roundoff(cond=cal.condition, scale=plane_scale * reach, ops=6)
 
 
@@ -116,17 +116,18 @@ def plane_ray_error(cal: PlaneCalibration, image_xy: ArrayLike, plane_scale: flo
 UNDISTORT_TOL = 1e-14
 
 
-def parallel_roundoff(P: np.ndarray, lengths: np.ndarray) -> float:
-    """Rounding bound (mm) of a chain from a parallel projection, true points P (..., N, 3).
+def parallel_roundoff(P: np.ndarray, lengths: ArrayLike, reach: float | None = None) -> float:
+    """Rounding bound (mm) of a chain from a parallel projection, true points P (..., N, 3) (NaN: not seen).
 
     A link's depth step dZ = sqrt(D^2 - r^2) cancels when the link lies nearly in the image plane:
-    the radicand's rounding, eps D (D + |P|) (r from differences of absolute image coordinates), moves
-    dZ by that over |dZ|. Links add up (no amplification along the chain), plus the summation's
-    rounding of |P|.
+    the radicand's rounding, eps D (D + reach) (r from differences of image coordinates of magnitude
+    ``reach``, default |P|), moves dZ by that over |dZ|. Links add up (no amplification along the
+    chain), plus the summation's rounding of ``reach``.
     """
+    lengths = np.asarray(lengths, float)
     prev = np.concatenate([np.zeros_like(P[..., :1, :]), P[..., :-1, :]], axis=-2)
     dz = np.abs(P[..., 2] - prev[..., 2])
-    reach = np.abs(P).max()
+    reach = float(np.nanmax(np.abs(P))) if reach is None else reach
     with np.errstate(divide="ignore"):
-        per_frame = np.sum(lengths * (lengths + reach) / dz, axis=-1) + P.shape[-2] * reach
+        per_frame = np.nansum(lengths * (lengths + reach) / dz, axis=-1) + P.shape[-2] * reach
     return roundoff(scale=float(per_frame.max()), ops=6)
