@@ -28,6 +28,7 @@ from mirrorlab.plugins.pipeline.algorithms import RSSRMarkers
 from mirrorlab.plugins.pipeline.report import pair_is_correct, scan_pixels
 
 from tests.support import REPO, run_cli
+from tests.tolerances import roundoff
 
 RECIPE = REPO / "sessions" / "rssr_mirror_film.toml"
 FRAMES = 12
@@ -79,6 +80,7 @@ def test_digitising_error_measured_and_bounded(film_run: tuple[Path, str]) -> No
         rms, sysm = f["report/digitising_rms"][()], f["report/digitising_systematic"][()]
         matched, visible = f["report/digitising_images"][()]
         assert matched == visible == 4 * FRAMES
+        # the module docstring: measured over simulator seeds 1-6, bounds with room above the worst seed
         assert rms[0] < 0.6 and 0.4 < rms[1] < 1.4 and np.hypot(*rms) < 1.5, rms
         assert np.all(np.abs(sysm) < 1.0), sysm
         # recompute independently: truth (film render px) -> scanner px, nearest detection per image
@@ -90,8 +92,11 @@ def test_digitising_error_measured_and_bounded(film_run: tuple[Path, str]) -> No
         d = np.linalg.norm(det[:, None] - true[:, :, None], axis=3)
         near = np.nanargmin(d, axis=2)
         err = np.take_along_axis(det, near[..., None], axis=1) - true
-        assert np.allclose(np.sqrt(np.mean(err.reshape(-1, 2) ** 2, axis=0)), rms)
-        assert np.allclose(err.reshape(-1, 2).mean(axis=0), sysm)
+        # the same statistics of 48 errors in another order: the sums' rounding
+        n = err.reshape(-1, 2).shape[0]
+        np.testing.assert_allclose(np.sqrt(np.mean(err.reshape(-1, 2) ** 2, axis=0)), rms, rtol=roundoff(ops=n))
+        np.testing.assert_allclose(err.reshape(-1, 2).mean(axis=0), sysm, rtol=0,
+                                   atol=roundoff(scale=np.abs(err).max(), ops=n))
     assert "digitising error (film + line-scan digitiser)" in stdout
 
 
@@ -104,8 +109,10 @@ def test_3d_errors_and_time_base(film_run: tuple[Path, str]) -> None:
         stamps = f["instruments/rssr/frames/time"][()]
         # (their spacing depends on the machine's load and may come near 1/3 s, but never to the microsecond)
         assert not np.allclose(stamps - stamps[0], np.arange(len(stamps)) / 3.0, atol=1e-6)
-        assert f["results/rssr_markers/run-0001/frame_period"][()] == pytest.approx(1 / 3, abs=1e-12)
-        assert np.allclose(f["results/rssr_markers/run-0001/time"][()], np.arange(FRAMES) / 3.0)
+        # the recipe's frame_rate = 3: 1 / 3 and k / 3 to a rounding or two
+        assert f["results/rssr_markers/run-0001/frame_period"][()] == pytest.approx(1 / 3, abs=roundoff(scale=1 / 3, ops=2))
+        np.testing.assert_allclose(f["results/rssr_markers/run-0001/time"][()], np.arange(FRAMES) / 3.0, rtol=0,
+                                   atol=roundoff(scale=FRAMES / 3.0, ops=2))
         keys = schema.get_json(f["report"], "kinematic_keys")
         k = dict(zip(keys, f["report/kinematic_rms"][()], strict=True))
         assert k["theta_dot"] < 0.1, k       # measured 0.017 rad/s; 0.23 with the scan stamps as times
@@ -123,7 +130,7 @@ def test_grid_film_is_headed_at_its_top_edge() -> None:
         assert model.execute(cmd)[-1].startswith("OK"), cmd
     scan_y = [float(v) for v in next(x for x in model.truth_lines() if x.startswith("SCAN ")).split()[2:]]
     first_line = (scan_y[0] - film.frame_top_mm(0)) / PIXEL_MM - 0.5      # film line of scan row 0
-    assert abs(first_line - 20) < 1.0, first_line
+    assert abs(first_line - 20) < 1.0, first_line  # heading stops on a whole line: one line of quantisation
 
 
 def test_rssr_markers_frame_rate_overrides_the_stamps() -> None:
@@ -133,10 +140,11 @@ def test_rssr_markers_frame_rate_overrides_the_stamps() -> None:
     stamps = np.array([0.0, 9.1, 17.5, 26.9, 35.0])            # a scan every ~9 s
     out = execute(RSSRMarkers, {"points": pts, "time": stamps, "frame_index": np.arange(2, 7)},
                   {"O_A": "300, -100, 700", "frame_rate": 3.0})
-    assert out.status == "ok" and out.outputs["frame_period"] == pytest.approx(1 / 3)
-    assert np.allclose(out.outputs["time"], np.arange(5) / 3.0)
+    assert out.status == "ok" and out.outputs["frame_period"] == pytest.approx(1 / 3, abs=roundoff(scale=1 / 3, ops=2))
+    np.testing.assert_allclose(out.outputs["time"], np.arange(5) / 3.0, rtol=0, atol=roundoff(scale=5 / 3, ops=2))
     est = execute(RSSRMarkers, {"points": pts, "time": stamps, "frame_index": np.arange(2, 7)},
                   {"O_A": "300, -100, 700"})
+    # spacings 9.1, 8.4, 9.4, 8.1 s: median 8.75, least-squares slope 8.78; 0.5 s holds either estimator
     assert est.outputs["frame_period"] == pytest.approx(8.75, abs=0.5)
 
 

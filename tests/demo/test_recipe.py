@@ -18,6 +18,7 @@ import pytest
 from mirrorlab.core.store import schema
 
 from tests.support import REPO, run_cli
+from tests.tolerances import roundoff
 
 ACQUIRE = REPO / "sessions" / "rssr_acquire.toml"
 ANALYSIS = REPO / "sessions" / "rssr_analysis.toml"
@@ -96,15 +97,18 @@ def test_errors_against_truth(short_run: tuple[Path, str]) -> None:
     out, stdout = short_run
     with h5py.File(out, "r") as f:
         rms = f["report/rms_per_marker"][()]
-        assert rms.shape == (2,) and np.all(rms < 2.5), rms
+        assert rms.shape == (2,) and np.all(rms < 2.5), rms  # the module docstring: 2x the worst measured marker
         # recompute from the file: reconstruction vs truth, tracks matched to markers by distance
         pts = f["results/reconstruct_mirror/run-0001/points"][()]
         true = f["truth/rssr/markers/positions"][()]
         d = np.linalg.norm(pts[:, :, None] - true[:, None], axis=3).mean(axis=0)
         order = np.argmin(d, axis=0)
         err = pts[:, order] - true
-        assert np.allclose(np.sqrt(np.mean(np.sum(err ** 2, axis=2), axis=0)), rms)
-        assert np.allclose(err.reshape(-1, 3).mean(axis=0), f["report/systematic"][()])
+        # the same statistics of 12 frames x 2 markers in another order: the sums' rounding
+        n = err.reshape(-1, 3).shape[0]
+        np.testing.assert_allclose(np.sqrt(np.mean(np.sum(err ** 2, axis=2), axis=0)), rms, rtol=roundoff(ops=3 * n))
+        np.testing.assert_allclose(err.reshape(-1, 3).mean(axis=0), f["report/systematic"][()], rtol=0,
+                                   atol=roundoff(scale=np.abs(err).max(), ops=n))
         # direct rendering: detected image positions within 0.11 px RMS of the truth (full demo);
         # the film + scanner path is tested in test_film_recipe.py
         assert np.hypot(*f["report/digitising_rms"][()]) < 0.3
@@ -125,7 +129,8 @@ def test_kinematics_close_to_analytic(short_run: tuple[Path, str]) -> None:
     with h5py.File(out, "r") as f:
         keys = schema.get_json(f["report"], "kinematic_keys")
         k = dict(zip(keys, f["report/kinematic_rms"][()], strict=True))
-        # measured here: theta_dot 0.0007, phi_dot 0.009 rad/s on 0.58 / 0.12 rad/s
+        # measured here: theta_dot 0.0007, phi_dot 0.009 rad/s on 0.58 / 0.12 rad/s; the bounds are 1/60 and
+        # 1/4 of those rates (the 1-2 mm marker errors on the 61 mm crank pass through the angle fits)
         assert k["theta_dot"] < 0.01 and k["phi_dot"] < 0.03
 
 

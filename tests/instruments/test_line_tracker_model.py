@@ -29,6 +29,7 @@ def marks(model: LineTrackerModel, seconds: float) -> np.ndarray:
 
 
 def test_fields_and_clock_limit() -> None:
+    # instruments.md §4.1 prints 18.6 deg (half a unit: 0.05) and 49 deg (2 atan(20 / 44) = 49.06)
     assert math.degrees(FIELD_ALONG) == pytest.approx(18.6, abs=0.05)
     assert math.degrees(FIELD_ACROSS) == pytest.approx(49.0, abs=0.15)
     model = LineTrackerModel()
@@ -42,12 +43,16 @@ def test_turntable_trace_is_a_251_px_sinusoid_at_78_8_ms() -> None:
     rows = marks(LineTrackerModel(seed=1), 3 * 1.84)
     t, m, d = rows[:, 0], rows[:, 1], rows[:, 2]
     period = np.diff(t).mean()
+    # the spec's 78.8 ms (512 / 6.5 kHz = 78.77 ms plus the host time the model adds) and 23.4 samples
+    # per turn; the mean of ~70 periods, whole-ms stamps: +-0.5 ms
     assert period == pytest.approx(0.0788, abs=0.0005)
     assert 1.84 / period == pytest.approx(23.4, abs=0.1)
     inside = (m - d / 2 > 0.5) & (m + d / 2 < 510.5)   # runs not cut by the sensor's ends
     w = 2 * math.pi / 1.84
     basis = np.stack([np.sin(w * t), np.cos(w * t), np.ones_like(t)], axis=1)[inside]
     (a, b, c), *_ = np.linalg.lstsq(basis, m[inside], rcond=None)
+    # a least-squares sine through marks on whole / half pixels (0.3 px quantisation) whose runs widen on the
+    # lit side: amplitude 251.4 px and centre 255.5 to 2 px / 1 px, residual below 1.5 px RMS
     assert math.hypot(a, b) == pytest.approx(0.16 * 44 / 0.028, abs=2.0)     # 251.4 px
     assert c == pytest.approx(255.5, abs=1.0)
     residual = m[inside] - basis @ np.array([a, b, c])
@@ -87,7 +92,7 @@ def test_two_peaks_of_a_walking_subject_pull_the_mark_off_the_body() -> None:
     m = float(model.execute("MARK?")[0].split()[2])
     true_px = float(model.execute("SIM:TRUTH?")[1].split()[3])
     leg_px = 44 / 0.028 * math.tan(math.radians(4.0))
-    assert abs(abs(m - true_px) - leg_px) < 6      # one leg is taken for the body (§4.4.3)
+    assert abs(abs(m - true_px) - leg_px) < 6      # one leg is taken for the body (§4.4.3), to its run's half-width
     model.execute("SELECT NEAREST")
     assert model.execute("SELECT FIRST") == ["OK"]
 

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from mirrorlab.plugins.markers import detect_markers
 
+from tests.tolerances import roundoff
+
 from .render import binary_disc_frame, random_centers, render_markers
 
 RADII = (3.0, 5.0, 10.0, 20.0)
@@ -35,7 +37,10 @@ def rms(e: np.ndarray) -> float:
 @pytest.mark.parametrize("radius", RADII)
 @pytest.mark.parametrize("blur", BLURS)
 def test_subpixel_rms_within_five_hundredths_of_a_pixel(radius: float, blur: float) -> None:
-    """Radius 3–20 px, blur σ 0.5–2 px, noise σ 2 grey levels: ≤ 0.05 px RMS (uint8 images)."""
+    """Radius 3–20 px, blur σ 0.5–2 px, noise σ 2 grey levels: ≤ 0.05 px RMS (uint8 images).
+
+    0.05 px is the acceptance figure of the demo issue (method error: sampling, uint8 levels, noise).
+    """
     image, truth = _scene(radius, blur, seed=int(radius * 10 + blur * 100))
     sub = rms(_matched_errors(detect_markers(image).xy, truth))
     ell = rms(_matched_errors(detect_markers(image, ellipse=True).xy, truth))
@@ -43,7 +48,9 @@ def test_subpixel_rms_within_five_hundredths_of_a_pixel(radius: float, blur: flo
     assert ell <= 0.05, ell
     if 2 * radius <= 20:  # the thesis detector handles markers up to 24 px only
         thesis = rms(_matched_errors(detect_markers(image, method="thesis").xy, truth))
-        assert 0.2 < thesis < 0.6, thesis  # integer output: ≈ 0.41 px (2-D) from quantisation alone
+        # integer output: sqrt(2 / 12) = 0.41 px (2-D) from quantisation alone; an RMS of 12 markers
+        # (24 coordinates) is good to ~15 %: 0.2-0.6 is wider than +-3 sd
+        assert 0.2 < thesis < 0.6, thesis
         assert thesis > 5 * sub
 
 
@@ -56,17 +63,23 @@ def test_oblique_markers_centres_axes_and_angle() -> None:
     for ellipse in (False, True):
         det = detect_markers(image, ellipse=ellipse)
         e = _matched_errors(det.xy, truth)
-        assert rms(e) <= 0.05
+        assert rms(e) <= 0.05  # the acceptance figure, as above
         order = np.argmin(np.linalg.norm(det.xy[:, None] - truth[None], axis=2), axis=0)
+        # blur sigma = 1 px adds sigma^2 to both second moments (semi-axes 12, 6: a^2 / 4 = 36, 9):
+        # e = sqrt(1 - 10 / 37) = 0.854, 0.012 below 0.866; 0.03 adds pixel sampling and noise
         np.testing.assert_allclose(det.eccentricity[order], np.sqrt(1 - 0.5 ** 2), atol=0.03)
+        # orientation of a 2:1 ellipse from its moments, under 2 grey levels of noise on ~220: a few
+        # tenths of a degree; 2 deg
         dang = np.angle(np.exp(2j * (det.angle[order] - np.deg2rad(angles)))) / 2
         assert np.max(np.abs(dang)) < np.deg2rad(2.0)
         if ellipse:  # the fitted half-contrast ellipse has the drawn axes (blur shrinks it slightly)
+            # blur moves the half-contrast line of an edge of curvature radius R inward by ~sigma^2 / (2 R):
+            # 0.17 px at the major-axis ends (R = b^2 / a = 3 px); 0.35 px with the contour's sampling
             np.testing.assert_allclose(det.axes[order], [[12.0, 6.0]] * len(truth), atol=0.35)
 
 
 def test_binary_scanner_frames_pixel_centroid_is_exact() -> None:
-    """512 × 344 binary frames: the centre is the exact pixel centroid (1e-9 px) of each disc."""
+    """512 × 344 binary frames: the centre is the exact pixel centroid (to rounding) of each disc."""
     rng = np.random.default_rng(3)
     truth = random_centers(rng, (344, 512), 12, 6.0, spacing=40)
     frame = binary_disc_frame((344, 512), truth, 6.0)
@@ -76,9 +89,12 @@ def test_binary_scanner_frames_pixel_centroid_is_exact() -> None:
     for c in truth:
         inside = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= 36.0)
         exact.append([xx[inside].mean(), yy[inside].mean()])
-    np.testing.assert_allclose(_matched_errors(det.xy, np.array(exact)), 0.0, atol=1e-9)
+    # both are means of the same integer coordinates (~113 per disc): the divisions' and sums' rounding
+    np.testing.assert_allclose(_matched_errors(det.xy, np.array(exact)), 0.0, atol=roundoff(scale=512.0, ops=det.area.max()))
     np.testing.assert_array_equal(det.contrast, 255.0)
-    assert rms(_matched_errors(det.xy, truth)) < 0.12  # pixel-centre sampling of a 12 px disc
+    # pixel-centre sampling of a 12 px disc: analysis.md §1.2 gives 0.04-0.08 px RMS for 10-16 px binary
+    # discs; 0.12 is 1.5x its upper end
+    assert rms(_matched_errors(det.xy, truth)) < 0.12
 
 
 def test_thesis_on_binary_discs_matches_the_spec_statistics() -> None:
@@ -91,6 +107,8 @@ def test_thesis_on_binary_discs_matches_the_spec_statistics() -> None:
             det = detect_markers(binary_disc_frame((344, 512), truth, diameter / 2), method="thesis")
             errors.append(_matched_errors(det.xy, truth))
         e = np.concatenate(errors)
+        # analysis.md §1.1: unbiased within 0.09 px, 0.30-0.34 px RMS per axis over 150 trials; an RMS of
+        # ~156 samples is good to 1 / sqrt(2 * 156) = 6 %, so 0.25-0.40 is the spec's range +- 2.5 sd
         assert np.all(np.abs(e.mean(axis=0)) < 0.09), e.mean(axis=0)
         per_axis = np.sqrt(np.mean(e ** 2, axis=0))
         assert np.all((per_axis > 0.25) & (per_axis < 0.40)), per_axis

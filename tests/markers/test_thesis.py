@@ -86,6 +86,7 @@ def test_limit_markers_closer_than_13_px_on_one_row_are_lost() -> None:
 def test_limit_markers_near_the_border_are_not_searched() -> None:
     frame = binary_disc_frame((80, 120), np.array([[5.0, 40.0], [60.0, 40.0]]), 2.0)
     found = detect_markers(frame, method="thesis").xy
+    # integer window index + 0.5: half a pixel of quantisation plus the 2 px disc's sampled asymmetry
     assert len(found) == 1 and abs(found[0, 0] - 60.0) <= 1.0
     assert len(detect_markers(frame, method="subpixel")) == 2
 

@@ -20,7 +20,27 @@ from mirrorlab.plugins.pairing import (
 )
 from mirrorlab.plugins.photogrammetry import PinholeCamera, reflect
 
+from tests.tolerances import roundoff
+
 from .scene import CAMERA, MIRRORS, P, epipoles, images, markers
+
+
+def distance_roundoff(real: np.ndarray, virtual: np.ndarray, e: np.ndarray) -> float:
+    """Rounding bound (px) of epipolar_distance for exact images.
+
+    The triple product (p x e) . q (homogeneous p, q) vanishes by cancellation: its rounding is ~eps
+    times the componentwise magnitude |p x e| . |q| (|a x b| with every product taken in absolute
+    value), divided by the line's |(p x e)_xy|; the images carry ~10 roundings of their pixel
+    coordinates from the projection.
+    """
+    ph, qh = np.c_[real, np.ones(len(real))], np.c_[virtual, np.ones(len(virtual))]
+    a, b = np.abs(ph), np.abs(e)
+    abs_cross = np.stack([a[:, 1] * b[2] + a[:, 2] * b[1], a[:, 2] * b[0] + a[:, 0] * b[2],
+                          a[:, 0] * b[1] + a[:, 1] * b[0]], axis=1)
+    terms = abs_cross @ np.abs(qh).T  # (N, M), every combination
+    lp, lq = np.cross(ph, e), np.cross(qh, e)
+    scale = terms / np.hypot(lp[:, 0], lp[:, 1])[:, None] + terms / np.hypot(lq[:, 0], lq[:, 1])[None, :]
+    return roundoff(scale=float(0.5 * scale.max() + np.abs(np.r_[real, virtual]).max()), ops=10)
 
 
 def _shuffled(rng, real, virtual):
@@ -43,7 +63,8 @@ def test_epipole_is_the_image_of_the_virtual_camera_and_lines_pass_through_it() 
     for k, (g, n) in enumerate(MIRRORS):
         e = mirror_epipole(P, CAMERA.camera_center, g, n)
         d = epipolar_distance(real, virtual[k], e)
-        np.testing.assert_allclose(np.diag(d), 0.0, atol=1e-7)  # exact scene: zero distance
+        # exact scene: zero distance, to rounding
+        np.testing.assert_allclose(np.diag(d), 0.0, atol=distance_roundoff(real, virtual[k], e))
         assert np.all(np.diag(ordering_ok(real, virtual[k], e)))
     assert epipoles()[0, 2] > 0 and epipoles()[2, 2] < 0  # in front of / behind the camera
 
@@ -63,7 +84,7 @@ def test_generated_mirror_scene_is_paired_completely_and_correctly(noise: float,
     _check_correct(res, truth)
     assert len(res.pairs) == len(stacked) and not res.ambiguous
     assert res.unpaired_virtual.size == 0 and res.unpaired_real.size == 0
-    assert res.cost.max() <= 2.0
+    assert res.cost.max() <= 2.0  # pairs are accepted within tol (0.3 px noise: distances ~0.4 px)
     np.testing.assert_array_equal(res.virtual_index(len(real), n_mirrors)[truth[:, 0], truth[:, 1]],
                                   np.arange(len(stacked)))
 
@@ -88,7 +109,7 @@ def test_decided_pairs_are_never_wrong_and_ambiguity_is_justified(seed: int, n: 
     for amb in res.ambiguous:
         assert len(amb.candidates) >= 2
         d = epipolar_distance(real[amb.real:amb.real + 1], stacked[list(amb.candidates)], e[amb.mirror])
-        assert np.all(d <= 1.5)
+        assert np.all(d <= 1.5)  # every candidate named is within the tol given to pair_mirror
 
 
 def test_continuity_over_a_sequence_decides_what_single_frames_cannot() -> None:
@@ -124,7 +145,7 @@ def _ambiguous_scene():
 def test_two_markers_on_one_epipolar_line_are_reported_not_guessed() -> None:
     _, real, virtual, e = _ambiguous_scene()
     d = epipolar_distance(real, virtual, e[0])
-    assert np.all(d < 1e-6)  # every combination is on the line
+    assert np.all(d <= distance_roundoff(real, virtual, e[0]))  # every combination is on the line (exact scene)
     assert ordering_ok(real, virtual, e[0]).all()  # and satisfies the ordering
     res = pair_mirror(real, virtual, e, tol=2.0)
     assert len(res.pairs) == 0
@@ -222,4 +243,5 @@ def test_pair_mirror_plugin_over_frames(tmp_path: Path) -> None:
         out = s.result(ref).outputs
     np.testing.assert_array_equal(out["virtual_index"][:, :, 0], np.array(truth))
     assert out["n_ambiguous"].tolist() == [0, 0, 0, 0]
-    np.testing.assert_allclose(out["virtual_xy"][1, 2, 0], np.array(frames_virtual)[1, truth[1][2]])
+    # the plugin copies the input coordinates: exact
+    np.testing.assert_array_equal(out["virtual_xy"][1, 2, 0], np.array(frames_virtual)[1, truth[1][2]])

@@ -17,6 +17,9 @@ from mirrorlab.plugins.photogrammetry.parallel import (
     relative_image_error,
 )
 
+from tests.photogrammetry.bounds import parallel_roundoff
+from tests.tolerances import abs_err, roundoff
+
 FIG_2_4 = np.array([
     [8.63, 17.19, 33.86, 49.50],
     [7.95, 15.66, 30.09, 42.85],
@@ -34,17 +37,22 @@ def test_fig_2_4_table():
     th = np.radians([0, 15, 30, 45, 60])[:, None]
     dth = np.radians([5, 10, 20, 30])[None, :]
     L = min_shooting_distance_rotation(1.0, 0.01, th, dth)
-    np.testing.assert_allclose(L, FIG_2_4, atol=0.005 + 1e-12)
-    # (2.3) with eps_max = gamma / cos(theta) and Delta L of (2.4) gives the same numbers
+    # the figure prints 2 decimals: half a unit, plus the formula's rounding (sin(theta + dtheta) -
+    # sin(theta) cancels by up to 22x at theta = 60, dtheta = 5 deg) for values printed from a tie
+    sin_cancel = np.max((np.sin(th + dth) + np.sin(th)) / (np.sin(th + dth) - np.sin(th)))
+    np.testing.assert_allclose(L, FIG_2_4, rtol=0, atol=0.005 + roundoff(cond=sin_cancel, scale=np.abs(L).max(), ops=8))
+    # (2.3) with eps_max = gamma / cos(theta) and Delta L of (2.4) gives the same numbers: the same
+    # (bitwise) sine difference times (1 - eps) / eps or (cos - gamma) / gamma, ~8 roundings apart
     L23 = min_shooting_distance_translation(np.sin(th + dth) - np.sin(th), 0.01 / np.cos(th))
-    np.testing.assert_allclose(L23, L, rtol=1e-12)
+    np.testing.assert_allclose(L23, L, rtol=roundoff(ops=8))
 
 
 def test_relative_image_error_matches_image_lengths():
     L, dL, A, ell = 20.0, 0.5, 1.0, 0.05
     a, a2 = ell / L * A, ell / (L + dL) * A  # (2.1)
-    assert relative_image_error(L, dL) == pytest.approx((a - a2) / a, rel=1e-14)
-    assert relative_image_error(L, dL) == pytest.approx(0.0243902, abs=5e-8)
+    # a - a2 cancels: relative error (a / (a - a2)) eps = ((L + dL) / dL) eps = 41 eps
+    assert relative_image_error(L, dL) == pytest.approx((a - a2) / a, rel=roundoff(cond=(L + dL) / dL, ops=6))
+    assert relative_image_error(L, dL) == pytest.approx(0.0243902, abs=5e-8)  # 7 decimals: half a unit
 
 
 @pytest.mark.parametrize("kwargs", [
@@ -81,8 +89,7 @@ def test_round_trip_property(seed, m, n):
     prev = np.concatenate([np.zeros((4, 1, 3)), P[:, :-1]], axis=1)
     signs = np.where(P[..., 2] >= prev[..., 2], 1, -1)
     r = reconstruct_chain_parallel(xy, D, m, signs=signs)
-    rel = np.abs(r.points - P).max() / np.abs(P).max()
-    assert rel <= 1e-9
+    assert abs_err(r.points, P) <= parallel_roundoff(P, D)
 
 
 def test_missing_sign_names_frame_and_marker():
@@ -100,8 +107,10 @@ def test_resolver_is_called_with_candidates():
 
     r = reconstruct_chain_parallel([[0.6, 0.0], [0.6, 0.8]], [1.0, 1.0], 1.0, signs=[1, 0], resolver=resolver)
     assert [(f, l) for f, l, _ in calls] == [(0, 2)]
-    np.testing.assert_allclose(calls[0][2][:, 2], [0.8 + 0.6, 0.8 - 0.6])
-    np.testing.assert_allclose(r.points[-1], [0.6, 0.8, 0.2])
+    # sqrt(1 - 0.6^2) = 0.8 to rounding; 0.8 - 0.6 cancels by 1.4 / 0.2 = 7
+    rtol = roundoff(cond=7.0, ops=6)
+    np.testing.assert_allclose(calls[0][2][:, 2], [0.8 + 0.6, 0.8 - 0.6], rtol=rtol)
+    np.testing.assert_allclose(r.points[-1], [0.6, 0.8, 0.2], rtol=rtol)
 
 
 def test_inconsistent_length_and_clamp():
