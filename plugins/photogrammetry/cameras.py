@@ -433,6 +433,8 @@ class PinholeCamera:
     def normalized(self, image_xy: ArrayLike) -> NDArray[np.float64]:
         """Undistorted normalised image coordinates (N, 2) via cv2.undistortPoints."""
         xy = np.asarray(image_xy, dtype=np.float64).reshape(-1, 1, 2)
+        if not len(xy):  # cv2.undistortPoints returns None for no points
+            return np.empty((0, 2))
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
         return cv2.undistortPoints(xy, self.K, self.dist, None, None, None, crit).reshape(-1, 2)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from mirrorlab.core import Session
 from mirrorlab.plugins.photogrammetry.camera_arrays import camera_from_arrays, pinhole_arrays
@@ -314,6 +314,7 @@ def test_mirror_error_analysis_matches_direct_sensitivity(session: Session) -> N
 
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 10_000), angle=st.floats(35.0, 65.0), frames=st.integers(1, 4))
+@example(seed=286, angle=35.0, frames=1)  # every real view missing: no point left to undistort
 def test_property_mirror_round_trip_random_scenes(tmp_path_factory, seed: int, angle: float, frames: int) -> None:
     """Random markers and mirror angles: reconstruct_mirror returns the markers, whatever is missing."""
     from mirrorlab.core.algorithms import execute
