@@ -14,7 +14,8 @@ from tests.support import REPO, run_cli
 RECIPES = sorted((REPO / "sessions").glob("*.toml"))
 
 
-@pytest.mark.parametrize("recipe", RECIPES, ids=[r.name for r in RECIPES])
+@pytest.mark.parametrize("recipe", [pytest.param(r, marks=pytest.mark.data) if "shared/data" in r.read_text() else r
+                                    for r in RECIPES], ids=[r.name for r in RECIPES])
 def test_bundled_recipes_validate(recipe: Path) -> None:
     proc = run_cli("run", str(recipe), "--check")
     assert proc.returncode == 0, proc.stderr

@@ -47,6 +47,7 @@ def file_app(recording: Path) -> MirrorlabApp:
     console.close()
 
 
+@pytest.mark.data  # the list shows retarget_bvh.toml, whose BVH file is in ../shared/data
 def test_analysis_form(app: MirrorlabApp, snap_compare, monkeypatch: pytest.MonkeyPatch) -> None:
     # The checkout's recipes, whatever the install: retarget_bvh.toml names its BVH file relative to
     # itself, so from an installed copy it is not listed, and the list's scrollbar would differ.
