@@ -13,9 +13,10 @@ from tests.cli_worker import CliWorker
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 THIRDPARTY = HERE / "thirdparty"
-#: Real recordings by other labs (``../shared/data`` beside the clone, never copied into it); the
-#: tests that read them are marked ``data`` and skip when it is absent (see ``tests/conftest.py``).
-SHARED_DATA = REPO.parent / "shared" / "data"
+#: Real recordings by other labs (``../shared/data`` beside the clone, never copied into it, or where
+#: ``MIRRORLAB_SHARED_DATA`` says); the tests that read them are marked ``data`` and skip when it is
+#: absent (see ``tests/conftest.py``).
+SHARED_DATA = Path(os.environ.get("MIRRORLAB_SHARED_DATA") or REPO.parent / "shared" / "data")
 #: Set to 1 (as ``.ci/run`` does) to make a missing data folder fail the data tests instead of skipping them.
 REQUIRE_DATA_ENV = "MIRRORLAB_REQUIRE_DATA"
 
