@@ -7,8 +7,8 @@ Public API::
 Plugins import what they need from here (and instrument drivers from ``mirrorlab.core.devices``),
 never from the core's internal modules: besides the classes above, the recipe ``Step`` base and
 its helpers, ``execute`` (run an algorithm without a session), the CLI helpers of plugin commands
-(``add_parameter_options``, ``collected``, ``plain``, ``existing_path``, ``add_overwrite_option``,
-``progress_bar``), ``SessionClock``, ``EventBus`` and the file ``schema``.
+(``add_parameter_options``, ``parameter_type``, ``collected``, ``plain``, ``existing_path``,
+``add_overwrite_option``, ``progress_bar``), ``SessionClock``, ``EventBus`` and the file ``schema``.
 
 Names other than the errors are imported on first use (PEP 562), so that light entry points such
 as ``mirrorlab --version`` (``mirrorlab.core.cli``) do not pay for numpy and h5py.
@@ -44,7 +44,7 @@ from .errors import (
 
 if TYPE_CHECKING:
     from .algorithms import Algorithm, Port, ResultRef, RunContext, execute
-    from .cli.options import add_parameter_options, collected, existing_path, plain
+    from .cli.options import add_parameter_options, collected, existing_path, parameter_type, plain
     from .cli.outputs import add_overwrite_option
     from .cli.progress import progress_bar
     from .clock import SessionClock
@@ -67,8 +67,8 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
          "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
          "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
-         "plain": "cli.options", "add_overwrite_option": "cli.outputs", "progress_bar": "cli.progress",
-         "schema": "store.schema"}
+         "parameter_type": "cli.options", "plain": "cli.options", "add_overwrite_option": "cli.outputs",
+         "progress_bar": "cli.progress", "schema": "store.schema"}
 
 __all__ = [
     "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "Cancelled", "ConfigurationError",
@@ -77,8 +77,8 @@ __all__ = [
     "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",
     "ResultRef", "RunContext", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
     "StoppedOnRequest", "StreamSpec", "ValidationError", "add_overwrite_option", "add_parameter_options",
-    "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "plain", "progress_bar",
-    "schema",
+    "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
+    "progress_bar", "schema",
 ]
 
 

@@ -875,7 +875,7 @@ class Session:
     def run(self, algorithm: str | type[Algorithm], inputs: Mapping[str, str | np.ndarray],
             parameters: Mapping[str, Any] | None = None,
             progress: Callable[[float, float | None, str], None] | None = None, *,
-            label: str | None = None) -> ResultRef:
+            label: str | None = None, input_units: Mapping[str, str] | None = None) -> ResultRef:
         """Run an algorithm and store its result with provenance.
 
         Parameters
@@ -893,6 +893,10 @@ class Session:
             Run label (``as = "..."`` in a recipe's ``run`` step) so that ``@label/output`` names
             this run's output even after later runs of the same algorithm. At most one successful
             run of a session carries a label; see :func:`~mirrorlab.core.algorithms.label_problem`.
+        input_units
+            Input name → unit of an input given as an array (or as a dataset without a ``unit``
+            attribute). An output unit declared as ``{name}/s`` becomes ``mm/s`` when input
+            ``name`` is in ``mm``; a dataset's own unit takes precedence.
 
         Returns the :class:`ResultRef`. The run is written as ``/results/<algorithm>/<run-id>``:
         its outputs first, each with the ``unit`` and ``description`` of its declared
@@ -914,6 +918,9 @@ class Session:
                 units[name] = _dataset_unit(self.file[sources[name]])
             else:
                 arrays[name] = np.asarray(value)
+        for name, unit in (input_units or {}).items():
+            if name in inputs and not units.get(name):
+                units[name] = unit
         datasets = dict(sources)
 
         def report(done: float, total: float | None, message: str) -> None:

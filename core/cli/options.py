@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..params import ParameterSet
+from ..params import Parameter, ParameterSet
 
 
 def plain(text: str) -> str:
@@ -58,6 +59,24 @@ def add_parameter_options(parser: argparse.ArgumentParser, params: ParameterSet,
             group.add_argument(flag, dest=dest, action=argparse.BooleanOptionalAction, default=None, help=text)
         else:
             group.add_argument(flag, dest=dest, default=None, metavar=p.type_name.upper(), help=text)
+
+
+def parameter_type(parameter: Parameter) -> Callable[[str], Any]:
+    """argparse ``type`` for a hand-written option: the text checked as ``parameter``.
+
+    Units are converted as in recipes (a ``mm`` parameter takes ``25``, ``"25 mm"``, ``"2.5 cm"``);
+    a bad value is a usage error naming the option.
+
+    >>> parameter_type(Parameter("square", float, unit="mm"))("2.5 cm")
+    25.0
+    """
+    def parse(text: str) -> Any:
+        value, reason = parameter.check(text)
+        if reason:
+            raise argparse.ArgumentTypeError(reason)
+        return value
+
+    return parse
 
 
 def existing_path(text: str) -> Path:

@@ -1,4 +1,8 @@
-"""ezc3d in a child process: a damaged C3D file must not crash or exhaust the caller.
+"""C3D parsing in a child process: a damaged C3D file must not crash or exhaust the caller.
+
+Files written on Intel (processor type 84) and DEC (85) machines are read with ezc3d; MIPS/SGI
+files (86: big-endian IEEE), which ezc3d refuses, with the pure-Python ``c3d`` package. The
+processor type is byte 4 of the parameter section.
 
 ezc3d (C++) trusts the sizes in a file's parameter section: a few flipped bits there make it
 segfault or allocate gigabytes (seen while fuzzing a real file). :func:`read_c3d_arrays` therefore
@@ -29,25 +33,68 @@ MEMORY_PER_FILE_BYTE = 64
 
 _CHILD = """
 import pickle, resource, sys
-import numpy as np, ezc3d
+import numpy as np
 
 path, extra = sys.argv[1], int(sys.argv[2])
 with open("/proc/self/statm") as fh:
     limit = int(fh.read().split()[0]) * resource.getpagesize() + extra
 soft, hard = resource.getrlimit(resource.RLIMIT_AS)
 resource.setrlimit(resource.RLIMIT_AS, (limit if hard == resource.RLIM_INFINITY else min(limit, hard), hard))
-try:
+
+
+def with_ezc3d():
+    import ezc3d
+
     c = ezc3d.c3d(path)
     par = c["parameters"]["POINT"]
     labels = [str(x).strip() for x in par["LABELS"]["value"]]
     if "LABELS2" in par:
         labels += [str(x).strip() for x in par["LABELS2"]["value"]]
-    out = ("ok", dict(labels=labels, rate=float(np.ravel(par["RATE"]["value"])[0]),
-                      units=[str(u) for u in (par["UNITS"]["value"] if "UNITS" in par else [])],
-                      points=np.asarray(c["data"]["points"], dtype=float),
-                      residuals=np.asarray(c["data"]["meta_points"]["residuals"], dtype=float),
-                      first_frame=int(c["header"]["points"]["first_frame"])))
-except Exception as exc:  # ezc3d raises plain RuntimeError/OSError/ValueError; keys may be missing
+    return dict(labels=labels, rate=float(np.ravel(par["RATE"]["value"])[0]),
+                units=[str(u) for u in (par["UNITS"]["value"] if "UNITS" in par else [])],
+                points=np.asarray(c["data"]["points"], dtype=float),
+                residuals=np.asarray(c["data"]["meta_points"]["residuals"], dtype=float),
+                first_frame=int(c["header"]["points"]["first_frame"]))
+
+
+def with_c3d_package():
+    # ezc3d refuses MIPS (big-endian) files; the pure-Python c3d package reads them
+    import itertools
+    import warnings
+
+    import c3d
+
+    with open(path, "rb") as fh, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # it warns about absent analog data and end-of-file padding
+        r = c3d.Reader(fh)
+        labels = [str(x).strip() for x in r.point_labels]
+        if r.get("POINT:LABELS2") is not None:
+            labels += [str(x).strip() for x in r.get("POINT:LABELS2").string_array]
+        units = r.get("POINT:UNITS")
+        frames = r.get("POINT:FRAMES")
+        n = int(frames.uint16_value) if frames is not None and frames.bytes_per_element == 2 else None
+        if n is not None:  # read the frames the parameter section declares, as ezc3d does, whatever the header says
+            r.header.last_frame = r.header.first_frame + n - 1
+        rows = [p for _, p, _ in itertools.islice(r.read_frames(), n)]
+        scale = r.point_scale
+    data = np.stack(rows, axis=-1).astype(float) if rows else np.zeros((r.point_used, 5, 0))  # (M, 5, T)
+    xyz = data[:, :3]
+    if scale > 0:
+        # integer storage: c3d rounds word * scale to float32; ezc3d keeps the exact product
+        xyz = np.round(xyz / scale) * scale
+    points = np.concatenate([np.transpose(xyz, (1, 0, 2)), np.ones((1,) + xyz.shape[::2])])
+    return dict(labels=labels, rate=float(r.point_rate),
+                units=[str(units.string_value).strip()] if units is not None else [],
+                points=points, residuals=data[None, :, 3], first_frame=int(r.header.first_frame) - 1)
+
+
+try:
+    with open(path, "rb") as fh:
+        block = fh.read(1)
+        fh.seek(max(block[0] - 1, 0) * 512 if block else 0)
+        processor = fh.read(4)[3:4]
+    out = ("ok", with_c3d_package() if processor == bytes([86]) else with_ezc3d())
+except Exception as exc:  # the readers raise plain RuntimeError/OSError/ValueError/AssertionError; keys may be missing
     out = ("error", f"{type(exc).__name__}: {exc}")
 sys.stdout.buffer.write(pickle.dumps(out))
 """
@@ -55,7 +102,11 @@ sys.stdout.buffer.write(pickle.dumps(out))
 
 @dataclass
 class C3DArrays:
-    """What :func:`~.io.read_c3d` needs from ezc3d; points (4, M, T), residuals (1, M, T) or empty."""
+    """What :func:`~.io.read_c3d` needs from the file.
+
+    ``points`` (4, M, T) in the file's unit, ``residuals`` (1, M, T) or empty, ``first_frame``
+    0-based, ``units`` the ``POINT:UNITS`` values (empty when the parameter is absent).
+    """
 
     labels: list[str]
     rate: float
@@ -66,12 +117,12 @@ class C3DArrays:
 
 
 def read_c3d_arrays(path: Path) -> C3DArrays:
-    """Parse ``path`` with ezc3d in a child process.
+    """Parse ``path`` with ezc3d (or, for a MIPS file, the ``c3d`` package) in a child process.
 
     Raises
     ------
     KinematicsIOError
-        ezc3d rejected the file, crashed on it, ran out of its memory allowance or took longer
+        The reader rejected the file, crashed on it, ran out of its memory allowance or took longer
         than :data:`TIMEOUT_S`; the message names the file.
     """
     extra = MEMORY_BASE + MEMORY_PER_FILE_BYTE * path.stat().st_size

@@ -3,9 +3,10 @@
 Every analysis command takes a SOURCE that is either a session file (``.h5``; the marker set
 ``--dataset NAME`` under ``/markers``, results stored with provenance through ``Session.run``) or
 a marker file (``.c3d``, ``.trc``, ``.tsv``; computed in memory, nothing stored). Markers are
-named by label (``Daphnee:STER`` or just ``STER`` when unique); ``A+B`` means the midpoint of A
-and B. Exit codes: 0 ok, 1 runtime failure (unreadable file, failed run), 2 usage or validation
-error (unknown marker, missing file, bad option value).
+named by label (``Daphnee:STER`` or just ``STER`` when unique, ``RKNE#9`` for marker 9 when
+several share the label ``RKNE``); ``A+B`` means the midpoint of A and B. Exit codes: 0 ok, 1
+runtime failure (unreadable file, failed run), 2 usage or validation error (unknown marker,
+missing file, bad option value).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from .algorithms import (
     UpperLimbAnglesAlgorithm,
 )
 from .errors import KinematicsError, KinematicsIOError
-from .io import MarkerData
+from .io import MarkerData, distinct_labels
 from .store import (
     export_markers,
     import_markers,
@@ -144,14 +145,15 @@ def marker_list(data: MarkerData, spec: str | None, option: str = "--markers") -
 # running algorithms on a source
 # ------------------------------------------------------------------------------------------------
 def run_algorithm(src: Source, cls: type[Algorithm], inputs: Mapping[str, Any], params: Mapping[str, Any],
-                  on_event: Any) -> dict[str, np.ndarray]:
+                  on_event: Any, units: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
     """Run ``cls`` through ``Session.run`` (session source) or ``execute`` (file source).
 
-    Returns the outputs; a failed run raises :class:`RunFailed` (exit 1), a failed session run is
-    stored with its error first.
+    ``units`` are the inputs' units (``Session.run``'s ``input_units``: they resolve output units
+    declared as ``{values}/s``). Returns the outputs; a failed run raises :class:`RunFailed`
+    (exit 1), a failed session run is stored with its error first.
     """
     if src.session is not None:
-        ref = src.session.run(cls, inputs, params)
+        ref = src.session.run(cls, inputs, params, input_units=units)
         src.runs.append(f"{ref.path}: {ref.status}")
         if ref.status != "ok":
             raise RunFailed(f"{cls.name} failed ({ref.path}): {ref.error}")
@@ -248,12 +250,15 @@ def cmd_derivatives(args: argparse.Namespace) -> int:
         if src.session is not None:
             src.session.events.subscribe(on_event)
         cols = marker_list(src.data, args.markers)
-        labels = [src.data.labels[c] for c in cols]
+        names = distinct_labels(src.data.labels)
+        labels = [names[c] for c in cols]
         if src.session is not None and len(cols) == len(src.data.labels):
             inputs: dict[str, Any] = {"time": f"{src.group}/time", "values": f"{src.group}/points"}
         else:
             inputs = {"time": src.time, "values": src.data.points[:, cols]}
-        out = run_algorithm(src, Derivatives, inputs, params, on_event)
+        # marker data are in mm and s whatever the source file used (an older session's marker group
+        # may lack the unit attributes, and a subset of markers is passed as an array)
+        out = run_algorithm(src, Derivatives, inputs, params, on_event, units={"time": "s", "values": "mm"})
         xs, v, a = out["smoothed"], out["velocity"], out["acceleration"]
         per = {}
         lines = [f"{'marker':24s} {'valid %':>8s} {'max |v| m/s':>12s} {'max |a| m/s²':>13s}"]
@@ -394,8 +399,9 @@ def cmd_rigid(args: argparse.Namespace) -> int:
         omega, rms = out["omega"], out["rms"]
         wn = np.linalg.norm(omega, axis=-1)
         posed = np.isfinite(out["R"]).all(axis=(1, 2))
+        names = distinct_labels(src.data.labels)
         result: dict[str, Any] = {
-            "markers": [src.data.labels[c] for c in cols], "frames_with_pose": int(posed.sum()),
+            "markers": [names[c] for c in cols], "frames_with_pose": int(posed.sum()),
             "rms_mm_mean": round(float(np.nanmean(rms)), 6) if posed.any() else None,
             "omega_max_rad_s": round(float(np.nanmax(wn)), 6) if np.isfinite(wn).any() else None}
         lines = [f"pose in {posed.sum()} of {posed.size} frames; rigid-fit rms mean {result['rms_mm_mean']} mm; "

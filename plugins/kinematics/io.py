@@ -7,9 +7,12 @@ and NaN for missing samples (C3D residual < 0, empty TRC cells, Qualisys all-zer
 from __future__ import annotations
 
 import csv
+import math
 import os
+import re
 import struct
 import warnings
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +23,8 @@ from numpy.typing import ArrayLike, NDArray
 from .c3d_reader import read_c3d_arrays
 from .errors import KinematicsIOError, TruncatedMarkerFile
 
-__all__ = ["MarkerData", "read_c3d", "read_trc", "read_qualisys_tsv", "write_c3d", "write_csv"]
+__all__ = ["MarkerData", "read_c3d", "read_trc", "read_qualisys_tsv", "write_c3d", "write_csv", "resolve_label",
+           "distinct_labels"]
 
 FloatArray = NDArray[np.float64]
 
@@ -61,63 +65,182 @@ class MarkerData:
         return (self.first_frame + np.arange(self.points.shape[0])) / self.rate
 
     def marker(self, label: str) -> FloatArray:
-        """Trajectory (T, 3) of one marker by label.
+        """Trajectory (T, 3) of one marker named as :func:`resolve_label` accepts (``RKNE#4``...).
 
         Raises
         ------
         KinematicsIOError
-            If the label is unknown (the message lists close matches).
+            If the label is unknown (the message lists close matches) or names several markers.
         """
-        if label not in self.labels:
-            near = [x for x in self.labels if label.lower() in x.lower()]
-            raise KinematicsIOError(f"no marker {label!r}; similar labels: {near or self.labels[:10]}")
-        return self.points[:, self.labels.index(label)]
+        return self.points[:, resolve_label(self.labels, label)]
 
 
-def _c3d_layout(p: Path) -> tuple[int, int, int, int] | None:
-    """Frame range and data layout from a C3D header: (first, last, data offset in bytes, bytes per frame).
+def _is_named(label: str, name: str) -> bool:
+    return label == name or label.split(":")[-1] == name
 
-    ``None`` when the header is not one this can read (ezc3d then judges the file). Header words
-    (16 bit, 1-based): 1 parameter block | 2 points | 3 analog values per frame | 4 first frame |
-    5 last frame | 7-8 scale factor (float; negative = float data) | 9 first data block. Byte 4 of
-    the parameter block names the processor: 84 Intel, 85 DEC (both little-endian), 86 MIPS (big).
+
+def resolve_label(labels: list[str], wanted: str) -> int:
+    """Column of marker ``wanted``: an exact label, ``LABEL#N`` or the unique label ending in ``:<wanted>``.
+
+    ``LABEL#N`` picks marker ``N`` of the file (1-based, in file order), which must be labelled
+    ``LABEL`` (or ``<prefix>:LABEL``): the way to name one of two markers that share a label.
+
+    Raises
+    ------
+    KinematicsIOError
+        Unknown label (the message lists close matches), or one that names several markers (the
+        message lists them and how to pick each).
+
+    Examples
+    --------
+    >>> resolve_label(["Subj:STER", "Subj:XIPH"], "XIPH")
+    1
+    >>> resolve_label(["RKNE", "LKNE", "RKNE"], "RKNE#3")
+    2
+    >>> try:
+    ...     resolve_label(["RKNE", "LKNE", "RKNE"], "RKNE")
+    ... except KinematicsIOError as exc:
+    ...     print(exc)
+    marker 'RKNE' is ambiguous: it names markers 1 ('RKNE') and 3 ('RKNE'); give 'RKNE#1' or 'RKNE#3'
+    """
+    exact = [i for i, lab in enumerate(labels) if lab == wanted]
+    picked = re.fullmatch(r"(.+)#(\d+)", wanted)
+    if not exact and picked:
+        n = int(picked[2])
+        if not 1 <= n <= len(labels) or not _is_named(labels[n - 1], picked[1]):
+            which = f"marker {n} is {labels[n - 1]!r}" if 1 <= n <= len(labels) else f"there are {len(labels)} markers"
+            raise KinematicsIOError(f"no marker {wanted!r}: {which}; LABEL#N names marker N (1-based) labelled LABEL")
+        return n - 1
+    found = exact or [i for i, lab in enumerate(labels) if lab.split(":")[-1] == wanted]
+    if len(found) == 1:
+        return found[0]
+    if found:
+        counts = Counter(labels)
+        choices = [repr(labels[i] if counts[labels[i]] == 1 else f"{wanted}#{i + 1}") for i in found]
+        raise KinematicsIOError(f"marker {wanted!r} is ambiguous: it names markers "
+                                f"{_and([f'{i + 1} ({labels[i]!r})' for i in found])}; give {_and(choices, 'or')}")
+    near = [lab for lab in labels if wanted.lower() in lab.lower()]
+    raise KinematicsIOError(f"no marker {wanted!r}; similar labels: {near or labels[:12]}")
+
+
+def _and(items: list[str], word: str = "and") -> str:
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} {word} {items[-1]}"
+
+
+def distinct_labels(labels: list[str]) -> list[str]:
+    """``labels`` with ``#N`` (the marker's 1-based number) appended where a label names several markers.
+
+    >>> distinct_labels(["RKNE", "LKNE", "RKNE"])
+    ['RKNE#1', 'LKNE', 'RKNE#3']
+    """
+    counts = Counter(labels)
+    return [f"{lab}#{k + 1}" if counts[lab] > 1 else lab for k, lab in enumerate(labels)]
+
+
+def _warn_shared_labels(p: Path, labels: list[str]) -> None:
+    """A :class:`~mirrorlab.core.errors.MirrorlabWarning` naming the labels several markers share."""
+    shared = {lab: [k + 1 for k, x in enumerate(labels) if x == lab] for lab, n in Counter(labels).items() if n > 1}
+    if shared:
+        lab, where = next(iter(shared.items()))
+        warnings.warn(MirrorlabWarning(
+            f"{p}: markers share labels: " + ", ".join(f"{x!r} (markers {_and(list(map(str, ks)))})"
+                                                       for x, ks in shared.items())
+            + f"; such a label is refused as ambiguous: name one marker as LABEL#N (its number), e.g. "
+              f"'{lab}#{where[-1]}'"), stacklevel=3)
+
+
+def _c3d_point_frames(section: bytes, order: str) -> int | None:
+    """The 16-bit ``POINT:FRAMES`` of a C3D parameter section (``None`` if absent or not 16-bit).
+
+    Records from byte 4: int8 name length (0 ends), int8 group id (negative: a group's own record),
+    the name, int16 offset to the next record from that word (0: last record); a parameter goes on
+    with int8 type (2 = int16), uint8 dimension count, the dimensions and the values.
+    """
+    groups: dict[int, str] = {}
+    frames: dict[int, int] = {}
+    pos = 4
+    while pos + 2 <= len(section):
+        size, group = struct.unpack_from("bb", section, pos)
+        at = pos + 2 + abs(size)
+        if size == 0 or group == 0 or at + 4 > len(section):
+            break
+        name = section[pos + 2:at].decode("ascii", "replace").upper()
+        offset, kind, dims = struct.unpack_from(order + "hbB", section, at)
+        if group < 0:
+            groups[-group] = name
+        elif name == "FRAMES" and kind == 2 and at + 6 + dims <= len(section):
+            frames[group] = struct.unpack_from(order + "H", section, at + 4 + dims)[0]
+        if offset <= 0:
+            break
+        pos = at + offset
+    return next((n for group, n in frames.items() if groups.get(group) == "POINT"), None)
+
+
+def _c3d_layout(p: Path) -> tuple[int, int, int, int, int | None] | None:
+    """Frame range and data layout of a C3D file.
+
+    ``(first, last, data offset in bytes, bytes per frame, POINT:FRAMES)``, or ``None`` when the
+    header is not one this can read (the reader then judges the file). Header words (16 bit,
+    1-based): 1 parameter block | 2 points | 3 analog values per frame | 4 first frame | 5 last frame
+    | 7-8 scale factor (float; negative = float data) | 9 first data block. Byte 3 of the
+    parameter section is its number of blocks, byte 4 the processor: 84 Intel, 85 DEC (both
+    little-endian), 86 MIPS (big).
     """
     with p.open("rb") as fh:
         header = fh.read(512)
         if len(header) < 512 or header[0] < 1:
             return None
         fh.seek((header[0] - 1) * 512)
-        param = fh.read(4)
-    if len(param) < 4 or param[3] not in (84, 85, 86):
+        section = fh.read(4)
+        if len(section) == 4 and section[2] > 0:  # byte 3: the section's length in blocks
+            section += fh.read(512 * section[2] - 4)
+    if len(section) < 4 or section[3] not in (84, 85, 86):
         return None
-    order = ">" if param[3] == 86 else "<"
+    order = ">" if section[3] == 86 else "<"
     points, analogs, first, last = struct.unpack_from(order + "4H", header, 2)
     (start,) = struct.unpack_from(order + "H", header, 16)
-    scale_sign = header[{84: 15, 85: 13, 86: 12}[param[3]]] & 0x80
-    return first, last, (start - 1) * 512, (4 * points + analogs) * (4 if scale_sign else 2)
+    scale_sign = header[{84: 15, 85: 13, 86: 12}[section[3]]] & 0x80
+    return (first, last, (start - 1) * 512, (4 * points + analogs) * (4 if scale_sign else 2),
+            _c3d_point_frames(section, order))
 
 
-def _check_c3d_length(p: Path) -> None:
-    """Raise :class:`TruncatedMarkerFile` if the file is shorter than the frames its header declares.
+def _check_c3d_frames(p: Path) -> None:
+    """Check the frames a C3D file holds against the frames it declares.
 
-    ezc3d reads whatever frames a cut file holds and adjusts its own header copy to match, so the
-    declared frame range is read from the file's header here.
+    The parameter section (``POINT:FRAMES``) declares the frame count; ezc3d and the ``c3d``
+    package read that many. The header's first/last-frame words are a copy that some writers leave
+    stale: a header that disagrees is a :class:`~mirrorlab.core.errors.MirrorlabWarning`, and a
+    file holding fewer frames than ``POINT:FRAMES`` declares is :class:`TruncatedMarkerFile`.
+    Without a 16-bit ``POINT:FRAMES`` the header's frame range is checked instead. (ezc3d reads
+    whatever frames a cut file holds and adjusts its own copies of both, so the file is read here.)
     """
     layout = _c3d_layout(p)
     if layout is None:
         return
-    first, last, offset, per_frame = layout
-    declared = last - first + 1
+    first, last, offset, per_frame, in_parameters = layout
+    in_header = last - first + 1
+    declared = in_header if in_parameters is None else in_parameters
     if declared <= 0 or per_frame <= 0 or offset < 0:
         return
     found = max(0, (p.stat().st_size - offset) // per_frame)
     if found < declared:
-        raise TruncatedMarkerFile(p, declared, found, f"the header declares {declared} frames ({first}..{last}) "
-                                                      f"but the file holds {found}")
+        said = (f"the header declares {declared} frames ({first}..{last})" if declared == in_header else
+                f"POINT:FRAMES declares {declared} frames (the header {in_header}, {first}..{last})")
+        raise TruncatedMarkerFile(p, declared, found, f"{said} but the file holds {found}")
+    if declared != in_header:
+        warnings.warn(MirrorlabWarning(
+            f"{p}: the header's frame range {first}..{last} ({in_header} frames) disagrees with POINT:FRAMES "
+            f"({declared}); reading the {declared} frames the parameter section declares and the file holds"),
+            stacklevel=3)
 
 
 def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
-    """Read the 3-D points of a C3D file with ezc3d.
+    """Read the 3-D points of a C3D file of any processor type (Intel, DEC, MIPS).
+
+    Intel and DEC files are read with ezc3d, MIPS (SGI, big-endian) files with the ``c3d``
+    package. The frame count is the one the parameter section declares (``POINT:FRAMES``).
+    :class:`~mirrorlab.core.errors.MirrorlabWarning` when the header's frame range disagrees with
+    it, when ``POINT:UNITS`` is absent (mm is assumed) and when a label names several markers.
 
     Parameters
     ----------
@@ -133,10 +256,10 @@ def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
     Raises
     ------
     TruncatedMarkerFile
-        If the file holds fewer frames than its header declares (it was cut short).
+        If the file holds fewer frames than it declares (it was cut short).
     KinematicsIOError
-        If the file cannot be read or has no point data (ezc3d runs in a child process, so a
-        damaged file that crashes it is reported here too).
+        If the file cannot be read or has no point data (the reader runs in a child process, so
+        a damaged file that crashes it is reported here too).
 
     Examples
     --------
@@ -149,19 +272,23 @@ def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
     p = Path(path)
     if not p.is_file():
         raise KinematicsIOError(f"{p}: no such C3D file")
-    _check_c3d_length(p)
+    _check_c3d_frames(p)
     c = read_c3d_arrays(p)
     data = c.points  # (4, M, T)
     if data.ndim != 3 or data.shape[0] < 3 or data.shape[1] == 0 or data.shape[2] == 0:
         raise KinematicsIOError(f"{p}: the C3D file holds no 3-D points")
     if not (np.isfinite(c.rate) and c.rate > 0):
         raise KinematicsIOError(f"{p}: POINT:RATE is {c.rate}, not a frame rate; the file is damaged")
-    unit = c.units[0] if c.units else "mm"
-    pts = np.transpose(data[:3], (2, 1, 0)) * _scale(unit, p)
+    units = [u.strip() for u in c.units if u.strip()]
+    if not units:
+        warnings.warn(MirrorlabWarning(f"{p}: no POINT:UNITS parameter; taking the points as mm (the usual C3D "
+                                       "unit): check their scale"), stacklevel=2)
+    pts = np.transpose(data[:3], (2, 1, 0)) * _scale(units[0] if units else "mm", p)
     if c.residuals.shape == (1, *data.shape[1:]):
         pts[c.residuals[0].T < 0] = np.nan
     n = pts.shape[1]  # a file may name fewer points than it holds: number the rest
     labels = c.labels[:n] + [f"point_{k + 1}" for k in range(len(c.labels), n)]
+    _warn_shared_labels(p, labels)
     return MarkerData(labels, c.rate, pts, c.first_frame)
 
 
@@ -193,11 +320,17 @@ def _check_rows(p: Path, text: str, declared: int | None, rows: int, last: tuple
                                        f"using those {rows} (an excerpt, or a copy cut short)"), stacklevel=3)
 
 
+#: The header lines of a TRC file, in order.
+_TRC_HEADER = ("'PathFileType'", "the header keys (DataRate, NumMarkers ...)", "their values",
+               "the marker names", "the coordinate labels (X1, Y1, Z1 ...)")
+
+
 def read_trc(path: os.PathLike[str] | str) -> MarkerData:
     """Read a TRC file (tab- or comma-separated, PathFileType 4).
 
     All complete data rows are read; fewer rows than the header's ``NumFrames`` give a
-    :class:`~mirrorlab.core.errors.MirrorlabWarning`. Empty cells are NaN.
+    :class:`~mirrorlab.core.errors.MirrorlabWarning`, and so do values past the ``NumMarkers``
+    markers (they are not read) and a label naming several markers. Empty cells are NaN.
 
     Returns
     -------
@@ -208,7 +341,8 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
     Raises
     ------
     TruncatedMarkerFile
-        If the file ends inside a data row (it was cut short).
+        If the file ends inside its header, after a header declaring frames, or inside a data row
+        (it was cut short).
     KinematicsIOError
         On a malformed header or data row.
     """
@@ -217,12 +351,18 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
         raise KinematicsIOError(f"{p}: no such TRC file")
     text = p.read_text(errors="replace")
     lines = text.splitlines()
-    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
+    if not lines or not lines[0].startswith("PathFileType"):
         raise KinematicsIOError(f"{p}: not a TRC file (first line must start with 'PathFileType')")
-    sep = "\t" if "\t" in lines[1] else ","
-    keys = [k.strip() for k in _split(lines[1], sep)]
-    vals = [v.strip() for v in _split(lines[2], sep)]
+    sep = "\t" if len(lines) > 1 and "\t" in lines[1] else ","
+    keys = [k.strip() for k in _split(lines[1], sep)] if len(lines) > 1 else []
+    vals = [v.strip() for v in _split(lines[2], sep)] if len(lines) > 2 else []
     hdr = dict(zip(keys, vals))
+    declared = _declared(hdr.get("NumFrames", ""))
+    if len(lines) < len(_TRC_HEADER):
+        missing = ", ".join(f"{what} (line {k})" for k, what in enumerate(_TRC_HEADER, start=1) if k > len(lines))
+        raise TruncatedMarkerFile(p, declared or 0, 0, f"the file ends after line {len(lines)} of its "
+                                                       f"{len(_TRC_HEADER)}-line header: {missing} and the data rows "
+                                                       "are missing")
     try:
         rate = float(hdr.get("DataRate") or hdr["CameraRate"])
         n_markers = int(hdr["NumMarkers"])
@@ -235,24 +375,37 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
     names = [x.strip() for x in _split(lines[3], sep)[2:]]
     labels = [x for x in names if x][:n_markers]
     labels += [f"M{k + 1}" for k in range(len(labels), n_markers)]
+    width = 2 + 3 * n_markers
     rows = []
     frames = []
     last = None
+    beyond: tuple[int, int] | None = None  # (line, markers) of the first row holding values past NumMarkers
     for lineno, ln in enumerate(lines[5:], start=6):
         cells = _split(ln, sep)
         if not cells or not cells[0].strip():
             continue
         try:
             frames.append(int(float(cells[0])))
-            vals3 = cells[2 : 2 + 3 * n_markers]
-            vals3 += [""] * (3 * n_markers - len(vals3))
+            vals3 = cells[2:width]
+            vals3 += [""] * (width - 2 - len(vals3))
             rows.append([float(v) if v.strip() else np.nan for v in vals3])
         except (ValueError, OverflowError):
             raise KinematicsIOError(f"{p}: line {lineno} is not a data row of numbers: {ln[:60]!r}") from None
-        last = (lineno, len(cells), 2 + 3 * n_markers)
+        used = max((k + 1 for k, c in enumerate(cells) if c.strip()), default=0)
+        if used > width and beyond is None:
+            beyond = (lineno, math.ceil((used - 2) / 3))
+        last = (lineno, len(cells), width)
     if not rows:
+        if declared:
+            raise TruncatedMarkerFile(p, declared, 0, f"the file ends after its header (line {len(lines)}): none of "
+                                                      f"the {declared} frames it declares is there")
         raise KinematicsIOError(f"{p}: TRC file has no data rows")
-    _check_rows(p, text, _declared(hdr.get("NumFrames", "")), len(rows), last)
+    _check_rows(p, text, declared, len(rows), last)
+    if beyond is not None:
+        warnings.warn(MirrorlabWarning(
+            f"{p}: line {beyond[0]} holds values of {beyond[1]} markers but the header's NumMarkers is {n_markers}; "
+            f"reading the first {n_markers}: correct NumMarkers (line 3) to read the others"), stacklevel=2)
+    _warn_shared_labels(p, labels)
     pts = np.asarray(rows, dtype=float).reshape(len(rows), n_markers, 3) * scale
     return MarkerData(labels, rate, pts, frames[0] - 1)
 
@@ -322,6 +475,7 @@ def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
     names = [x.strip() for x in hdr.get("MARKER_NAMES", [])]
     labels = [names[i] if i < len(names) and names[i] else f"unlabeled_{i - len([n for n in names if n]) + 1}"
               for i in range(n_markers)]
+    _warn_shared_labels(p, labels)
     return MarkerData(labels, rate, pts, int(frames[0]) - 1)
 
 

@@ -31,7 +31,16 @@ import numpy as np
 from mirrorlab.core import schema
 
 from .errors import KinematicsIOError
-from .io import MarkerData, read_c3d, read_qualisys_tsv, read_trc, write_c3d, write_csv
+from .io import (
+    MarkerData,
+    distinct_labels,
+    read_c3d,
+    read_qualisys_tsv,
+    read_trc,
+    resolve_label,
+    write_c3d,
+    write_csv,
+)
 
 __all__ = ["FORMATS", "MARKERS_ROOT", "read_marker_file", "marker_group_path", "import_markers",
            "read_markers", "export_markers", "sha256_file", "resolve_label", "marker_names"]
@@ -129,7 +138,7 @@ def import_markers(session: Any, path: os.PathLike[str] | str, name: str | None 
                                 "because marker datasets are never overwritten")
     data = FORMATS[fmt](p)
     session.write_group(group, {"points": data.points, "time": data.time}, {
-        "labels": list(data.labels), "rate": float(data.rate), "units": "mm", "time_unit": "s",
+        "labels": list(data.labels), "rate": float(data.rate), "unit": "mm", "units": "mm", "time_unit": "s",
         "first_frame": int(data.first_frame), "source_file": str(p), "source_sha256": sha256_file(p),
         "source_format": fmt, "kind": "markers",
     })
@@ -189,34 +198,14 @@ def marker_time(file: h5py.File, name: str) -> np.ndarray:
 
 
 def export_markers(data: MarkerData, out: os.PathLike[str] | str, fmt: str) -> None:
-    """Write marker data as ``csv`` (:func:`~.io.write_csv`) or ``c3d`` (:func:`~.io.write_c3d`)."""
+    """Write marker data as ``csv`` (:func:`~.io.write_csv`) or ``c3d`` (:func:`~.io.write_c3d`).
+
+    A C3D file keeps the labels as they are; CSV column names must tell markers apart, so labels
+    that several markers share get their number there (``RKNE#4_x_mm``, see :func:`~.io.distinct_labels`).
+    """
     if fmt == "csv":
-        write_csv(out, data.labels, data.rate, data.points, first_frame=data.first_frame)
+        write_csv(out, distinct_labels(data.labels), data.rate, data.points, first_frame=data.first_frame)
     elif fmt == "c3d":
         write_c3d(out, data.labels, data.rate, data.points)
     else:
         raise KinematicsIOError(f"unknown export format {fmt!r}; use csv or c3d")
-
-
-def resolve_label(labels: list[str], wanted: str) -> int:
-    """Column of marker ``wanted``: an exact label, else the unique label ending in ``:<wanted>``.
-
-    Raises
-    ------
-    KinematicsIOError
-        Unknown or ambiguous label (the message lists close matches).
-
-    Examples
-    --------
-    >>> resolve_label(["Subj:STER", "Subj:XIPH"], "XIPH")
-    1
-    """
-    if wanted in labels:
-        return labels.index(wanted)
-    tail = [i for i, lab in enumerate(labels) if lab.split(":")[-1] == wanted]
-    if len(tail) == 1:
-        return tail[0]
-    if len(tail) > 1:
-        raise KinematicsIOError(f"marker {wanted!r} is ambiguous: {[labels[i] for i in tail]}; give the full label")
-    near = [lab for lab in labels if wanted.lower() in lab.lower()]
-    raise KinematicsIOError(f"no marker {wanted!r}; similar labels: {near or labels[:12]}")

@@ -622,7 +622,8 @@ def find_chessboard_corners(
     Raises
     ------
     CalibrationError
-        The board was found in none of the images, or the images differ in size.
+        The board was found in none of the images (when the classic detector finds none, the
+        message says whether the sb detector finds it), or the images differ in size.
 
     Examples
     --------
@@ -635,17 +636,25 @@ def find_chessboard_corners(
     items = list(images)
     if method not in ("classic", "sb"):
         raise InvalidArgument(f"method must be 'classic' or 'sb', not {method!r}")
-    with ThreadPoolExecutor(max_workers=workers or os.cpu_count() or 1) as ex:
-        results = list(ex.map(lambda it: _detect_one(it, tuple(pattern_size), method), items))
+
+    def detect(how: str) -> list[tuple[bool, NDArray | None, tuple[int, int]]]:
+        with ThreadPoolExecutor(max_workers=workers or os.cpu_count() or 1) as ex:
+            return list(ex.map(lambda it: _detect_one(it, tuple(pattern_size), how), items))
+
+    results = detect(method)
     sizes = {r[2] for r in results}
     if len(sizes) > 1:
         raise CalibrationError(f"images have different sizes {sorted(sizes)}; calibrate each camera/resolution separately")
     found = [i for i, r in enumerate(results) if r[0]]
     if not found:
-        raise CalibrationError(
-            f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} image{'s' * (len(items) != 1)}; check "
-            "the pattern size (inner corners COLSxROWS, not squares) and the lighting"
-        )
+        hint = "check the pattern size (inner corners COLSxROWS, not squares) and the lighting"
+        if method == "classic":  # the sb detector copes with blur and noise that defeat the classic one
+            by_sb = sum(r[0] for r in detect("sb"))
+            hint = (f"the sb corner detector finds it in {by_sb} of them: rerun with --detector sb (detector = "
+                    "\"sb\" in a recipe step, method=\"sb\" in Python)" if by_sb else
+                    f"{hint} (the sb corner detector finds none either)")
+        raise CalibrationError(f"no {pattern_size[0]}x{pattern_size[1]} chessboard found in {len(items)} "
+                               f"image{'s' * (len(items) != 1)}; {hint}")
     obj = chessboard_object_points(pattern_size, square_size)
     label = [str(it) if isinstance(it, (str, Path)) else i for i, it in enumerate(items)]
     return ChessboardDetections(

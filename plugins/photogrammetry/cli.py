@@ -30,6 +30,7 @@ from mirrorlab.core import (
     add_parameter_options,
     collected,
     execute,
+    parameter_type,
     progress_bar,
 )
 
@@ -60,9 +61,11 @@ def add(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--images", metavar="DIR|GLOB", help="chessboard photos (pinhole calibration)")
     src.add_argument("--points", type=Path, metavar="CSV", help="calibration points x,y,plane_x,plane_y (plane map)")
     c.add_argument("--pattern", help="chessboard inner corners COLSxROWS, e.g. 10x7")
-    c.add_argument("--square", type=float, help="chessboard square side [mm] (required with --images)")
+    c.add_argument("--square", type=parameter_type(Parameter("square", float, unit="mm")), metavar="MM",
+                   help="chessboard square side [mm; units allowed: '25 mm', '2.5 cm'] (required with --images)")
     c.add_argument("--detector", choices=("classic", "sb"), default="classic", help="corner detector")
-    c.add_argument("--camera-center", metavar="X,Y,Z", help="camera centre F1 [mm] (plane map)")
+    c.add_argument("--camera-center", metavar="X,Y,Z",
+                   help="camera centre F1 [mm; or with a unit: '[0.4, 0.2, 1.4] m'] (plane map)")
     c.add_argument("--session", type=Path, help="session file to write /calibration/<camera> into (created if missing)")
     add_overwrite_option(c, "--session")
     c.add_argument("--camera", default="cam", help="camera name (default cam)")
@@ -85,12 +88,13 @@ def add(sub: argparse._SubParsersAction) -> None:
                    help="an algorithm input from a dataset of SESSION (e.g. real_xy=/truth/real_xy)")
     r.add_argument("--calibration", metavar="/GROUP", help="camera from a calibration group of SESSION, e.g. /calibration/cam")
     r.add_argument("--camera-file", type=Path, metavar="JSON", help="camera from the output of mirrorlab calibrate --json")
-    for flag, what in (("--mirror-point", "X,Y,Z point G on the mirror [mm] (mirror)"),
+    in_mm = "[mm; or with a unit: '[0.1, 0.2, 0.9] m', '10 cm, 20 cm, 90 cm']"
+    for flag, what in (("--mirror-point", f"X,Y,Z point G on the mirror {in_mm} (mirror)"),
                        ("--normal", "X,Y,Z mirror normal toward the camera (mirror; estimated from the data if absent)"),
-                       ("--lengths", "D1,D2,... link lengths [mm] (parallel, central)"),
+                       ("--lengths", f"D1,D2,... link lengths {in_mm} (parallel, central)"),
                        ("--signs", "S1,S2,... +1/-1 per link (parallel; central: 0 = undecided)"),
                        ("--principal-point", "X,Y image of the optical axis (central)"),
-                       ("--start", "X,Y,Z chain start instead of K [mm] (central)")):
+                       ("--start", f"X,Y,Z chain start instead of K {in_mm} (central)")):
         r.add_argument(flag, metavar="V1,V2,...|/DATASET", help=what)
     r.add_argument("--out", type=Path, metavar="CSV", help="write points (frame,marker,X,Y,Z,...) to this CSV")
     r.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -103,9 +107,10 @@ def add(sub: argparse._SubParsersAction) -> None:
 # ------------------------------------------------------------------------------------------------ helpers
 
 
-def _vector(text: str, option: str) -> np.ndarray:
-    """``"1, 2, 3"`` (units allowed: ``"[1, 2, 3] m"`` in mm) as an input array; a usage error naming ``option``."""
-    value, problem = Parameter(option.lstrip("-").replace("-", "_"), float, shape=(None,)).check(text)
+def _vector(text: str, option: str, unit: str = "") -> np.ndarray:
+    """``"1, 2, 3"`` as an input array in ``unit`` (``"[1, 2, 3] m"`` is converted to a ``mm`` one); a
+    usage error naming ``option``."""
+    value, problem = Parameter(option.lstrip("-").replace("-", "_"), float, unit=unit, shape=(None,)).check(text)
     if problem:
         raise ValidationError([Problem(option, problem)])
     return np.array(value)
@@ -206,7 +211,7 @@ def calibrate(args: argparse.Namespace) -> int:
         algorithm = algs["calibrate_plane"]
         if not args.camera_center:
             raise ValidationError([Problem("--camera-center", "required with --points: camera centre X,Y,Z in mm")])
-        center = _vector(args.camera_center, "--camera-center")
+        center = _vector(args.camera_center, "--camera-center", "mm")
         if center.shape != (3,):
             raise ValidationError([Problem("--camera-center", f"needs 3 numbers X,Y,Z, got {center.size}")])
         params = _params_for(args, algorithm, [algs["calibrate_pinhole"]])
@@ -243,13 +248,13 @@ def calibrate(args: argparse.Namespace) -> int:
 
 # ------------------------------------------------------------------------------------------------ reconstruct
 
-_VECTOR_OPTIONS = {"mirror_point": "mirror_point", "normal": "normal", "lengths": "lengths", "signs": "signs",
-                   "principal_point": "principal_point", "start": "start"}
+#: Vector options of ``reconstruct`` (each named as the input it provides) and their units.
+_VECTOR_UNITS = {"mirror_point": "mm", "normal": "", "lengths": "mm", "signs": "", "principal_point": "", "start": "mm"}
 
 
 def _option_for(name: str) -> str:
     """The command-line option(s) that provide the algorithm input ``name``."""
-    if name in _VECTOR_OPTIONS:
+    if name in _VECTOR_UNITS:
         return f"--{name.replace('_', '-')} V1,V2,...|/DATASET"
     if name in CAMERA_KEYS:
         return "--calibration /GROUP or --camera-file FILE.json"
@@ -306,16 +311,16 @@ def reconstruct(args: argparse.Namespace) -> int:
             if s is None:
                 raise ValidationError([Problem("--input", "dataset inputs need SESSION")])
             inputs[name] = path
-        for option, name in _VECTOR_OPTIONS.items():
-            text = getattr(args, option)
+        for name, unit in _VECTOR_UNITS.items():
+            text = getattr(args, name)
             if text is None:
                 continue
             if text.startswith("/"):
                 if s is None:
-                    raise ValidationError([Problem(f"--{option.replace('_', '-')}", "a dataset path needs SESSION")])
+                    raise ValidationError([Problem(f"--{name.replace('_', '-')}", "a dataset path needs SESSION")])
                 inputs[name] = text
             else:
-                inputs[name] = _vector(text, f"--{option.replace('_', '-')}")
+                inputs[name] = _vector(text, f"--{name.replace('_', '-')}", unit)
         declared = {p.name for p in algorithm.inputs}
         unknown = sorted(set(inputs) - declared)
         if unknown:

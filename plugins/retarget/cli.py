@@ -13,7 +13,15 @@ import json
 from pathlib import Path
 
 import numpy as np
-from mirrorlab.core import ParameterSet, Problem, ValidationError, add_parameter_options, collected
+from mirrorlab.core import (
+    Parameter,
+    ParameterSet,
+    Problem,
+    ValidationError,
+    add_parameter_options,
+    collected,
+    parameter_type,
+)
 
 from .algorithms import CHAIN_PARAMETERS, chain_from, read_motion, stream_motion
 from .errors import ChainDefinitionError
@@ -75,7 +83,8 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("source", help="motion file (.bvh, .c3d, .trc, .tsv) or session (.h5)")
     p.add_argument("--joints", required=True, help="input joints root to tip, comma-separated")
     p.add_argument("--dataset", help="marker set under /markers when SOURCE is a session")
-    p.add_argument("--scale", type=float, default=1.0, help="mm per file length unit (CMU BVH: 56.444)")
+    p.add_argument("--scale", type=parameter_type(Parameter("scale", float, unit="mm")), default=1.0, metavar="MM",
+                   help="the length of one file unit [mm; or with a unit: '2.54 cm'] (CMU BVH: 56.444; default 1)")
     p.add_argument("--skip", type=int, default=0, help="leading frames to drop (CMU BVH: 1, the T-pose)")
     p.add_argument("--rate", type=float, default=0.0, help="filter rate in Hz (default: the file's frame rate)")
     p.add_argument("--realtime", action="store_true",

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from mirrorlab.core.errors import MirrorlabWarning
@@ -100,3 +102,29 @@ def test_reader_errors(tmp_path):
     t.write_text("hello\n")
     with pytest.raises(KinematicsIOError, match="TRC"):
         read_trc(t)
+
+
+def _trc(path, header_markers: int, names: list[str], rows: list[str]) -> None:
+    path.write_text(
+        "PathFileType\t4\t(X/Y/Z)\tm.trc\n"
+        "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\n"
+        f"100\t100\t{len(rows)}\t{header_markers}\tmm\n"
+        "Frame#\tTime\t" + "\t\t\t".join(names) + "\t\t\n"
+        "\t\t" + "\t".join(f"X{k}\tY{k}\tZ{k}" for k in range(1, len(names) + 1)) + "\n"
+        "\n" + "".join(r + "\n" for r in rows))
+
+
+def test_trc_values_past_num_markers_are_a_warning(tmp_path):
+    p = tmp_path / "m.trc"
+    _trc(p, 2, ["A", "B", "C"], ["1\t0\t1\t2\t3\t4\t5\t6\t\t\t", "2\t0.01\t1\t2\t3\t4\t5\t6\t7\t8\t9"])
+    with pytest.warns(MirrorlabWarning) as caught:
+        d = read_trc(p)
+    assert [str(w.message) for w in caught] == [
+        f"{p}: line 8 holds values of 3 markers but the header's NumMarkers is 2; reading the first 2: "
+        "correct NumMarkers (line 3) to read the others"]
+    assert d.labels == ["A", "B"] and d.points.shape == (2, 2, 3)
+    # empty cells past the markers (trailing tabs, as many writers leave) are no values
+    _trc(p, 2, ["A", "B"], ["1\t0\t1\t2\t3\t4\t5\t6\t\t\t", "2\t0.01\t1\t2\t3\t4\t5\t6\t\t"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_trc(p).points.shape == (2, 2, 3)

@@ -88,3 +88,32 @@ def test_reading_from_an_unguarded_script_runs_the_script_once(tmp_path: Path, d
     proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout == "(580, 51, 3)\n"
+
+
+@pytest.mark.parametrize(("lines", "missing"), [
+    (1, "the header keys (DataRate, NumMarkers ...) (line 2), their values (line 3), the marker names (line 4), "
+        "the coordinate labels (X1, Y1, Z1 ...) (line 5)"),
+    (2, "their values (line 3), the marker names (line 4), the coordinate labels (X1, Y1, Z1 ...) (line 5)"),
+    (4, "the coordinate labels (X1, Y1, Z1 ...) (line 5)"),
+])
+def test_a_trc_cut_inside_its_header_is_named_as_cut(tmp_path: Path, data_dir: Path, lines: int, missing: str) -> None:
+    text = (data_dir / "mocap" / "markers.trc").read_text()
+    short = tmp_path / "short.trc"
+    short.write_text("".join(text.splitlines(keepends=True)[:lines]))
+    with pytest.raises(TruncatedMarkerFile) as info:
+        read_trc(short)
+    assert str(info.value).startswith(f"{short}: cut short: the file ends after line {lines} of its 5-line header: "
+                                      f"{missing} and the data rows are missing")
+    assert info.value.declared == (652 if lines >= 3 else 0) and info.value.found == 0
+    proc = run_cli("kinematics", "import", str(short), "--session", str(tmp_path / "s.h5"))
+    assert proc.returncode == 1 and proc.stderr.startswith("mirrorlab: error: ") and "cut short" in proc.stderr
+    assert "not a TRC file" not in proc.stderr and len(proc.stderr.splitlines()) == 1
+
+
+def test_a_trc_that_ends_after_its_header_is_cut_short(tmp_path: Path, data_dir: Path) -> None:
+    text = (data_dir / "mocap" / "markers.trc").read_text()
+    short = tmp_path / "header.trc"
+    short.write_text("".join(text.splitlines(keepends=True)[:6]))  # the 5 header lines and the empty line 6
+    with pytest.raises(TruncatedMarkerFile, match=r"header.trc: cut short: the file ends after its header \(line 6\): "
+                                                  r"none of the 652 frames it declares is there"):
+        read_trc(short)

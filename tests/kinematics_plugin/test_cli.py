@@ -152,3 +152,28 @@ def test_bad_inputs_exit_codes(session, tmp_path):
     assert proc.returncode == 1 and "Nyquist" in _one_error_line(proc)        # a failed run, stored
     with h5py.File(session, "r") as f:
         assert any(g.attrs["status"] == "failed" for g in f["results/derivatives"].values())
+
+
+def test_retarget_scale_takes_units(tmp_path):
+    # ``retarget run --scale``, the length of one file unit in mm, takes units like every length option
+    # (tests/photogrammetry_plugin/test_cli_units.py lists them all); here on a marker-file arm
+    t = np.arange(20) / 100.0
+    pts = np.zeros((20, 3, 3))
+    pts[:, 1, 0] = 100.0
+    pts[:, 2, :2] = np.c_[100.0 + 80.0 * np.cos(3 * t), 80.0 * np.sin(3 * t)]
+    arm = tmp_path / "arm.c3d"
+    write_c3d(arm, ["S", "E", "W"], 100.0, pts)
+    q = {}
+    for text in ("2", "0.2 cm", "0.002 m", "1"):
+        out = tmp_path / f"q{text.replace(' ', '')}.csv"
+        proc = run_cli("retarget", "run", str(arm), "--joints", "S,E,W", "--scale", text, "--lengths", "200,160",
+                       "--axes", "z,z", "--csv", str(out))
+        assert proc.returncode == 0, proc.stderr
+        q[text] = np.loadtxt(out, delimiter=",", skiprows=1, usecols=(2, 3, 4))  # q0, q1, f (not the latency)
+    assert np.array_equal(q["0.2 cm"], q["2"]) and np.array_equal(q["0.002 m"], q["2"])
+    assert not np.allclose(q["1"], q["2"])  # the scale matters: at 1 the input arm is half the output's size
+    proc = run_cli("retarget", "run", str(arm), "--joints", "S,E,W", "--scale", "0.2 s", "--lengths", "200,160",
+                   "--axes", "z,z")
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines()[-1] == ("mirrorlab: error: argument --scale: wrong unit: cannot convert s (time) "
+                                            "to mm (length)")
