@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support import REQUIRE_DATA_ENV, SHARED_DATA, THIRDPARTY, pip_install_target
+from tests.support import REQUIRE_DATA_ENV, SHARED_DATA, THIRDPARTY, built_once, pip_install_target
 
 
 def require_shared_data() -> Path:
@@ -58,13 +58,14 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.fixture(scope="session")
 def acme_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A directory holding the installed ``mirrorlab-acme`` distribution."""
-    return pip_install_target(THIRDPARTY / "mirrorlab-acme", tmp_path_factory.mktemp("acme-site"))
+    return built_once(tmp_path_factory, "acme-site", lambda site: pip_install_target(THIRDPARTY / "mirrorlab-acme", site))
 
 
 @pytest.fixture(scope="session")
 def broken_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A directory holding the deliberately broken ``mirrorlab-broken`` distribution."""
-    return pip_install_target(THIRDPARTY / "mirrorlab-broken", tmp_path_factory.mktemp("broken-site"))
+    return built_once(tmp_path_factory, "broken-site",
+                      lambda site: pip_install_target(THIRDPARTY / "mirrorlab-broken", site))
 
 
 @pytest.fixture

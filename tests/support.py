@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import atexit
+import fcntl
 import os
+import shutil
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
+
+import pytest
 
 from tests.cli_worker import CliWorker
 
@@ -19,6 +24,29 @@ THIRDPARTY = HERE / "thirdparty"
 SHARED_DATA = Path(os.environ.get("MIRRORLAB_SHARED_DATA") or REPO.parent / "shared" / "data")
 #: Set to 1 (as ``.ci/run`` does) to make a missing data folder fail the data tests instead of skipping them.
 REQUIRE_DATA_ENV = "MIRRORLAB_REQUIRE_DATA"
+
+
+def built_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Callable[[Path], None]) -> Path:
+    """A folder ``name`` filled by ``build(folder)`` once per test run, shared by pytest-xdist's workers.
+
+    Expensive fixtures whose result is only read (an installed test plugin, the demo's session for
+    the docs) are built by the first worker that needs them while the others wait on a file lock,
+    instead of once per worker. Without xdist it is an ordinary temporary folder.
+    """
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        folder = tmp_path_factory.mktemp(name)
+        build(folder)
+        return folder
+    root = tmp_path_factory.getbasetemp().parent  # this run's base folder, above each worker's own
+    folder, done = root / name, root / f"{name}.done"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)  # a build that failed in another worker
+            folder.mkdir()
+            build(folder)
+            done.touch()
+    return folder
 
 
 def pip_install_target(package: Path, target: Path) -> Path:

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support import REPO, SHARED_DATA, THIRDPARTY
+from tests.support import REPO, SHARED_DATA, THIRDPARTY, built_once
 
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 DEMO_COMMAND = "mirrorlab demo --out demo.h5"
@@ -132,19 +132,24 @@ def _throwaway_venv(where: Path) -> Path:
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory: pytest.TempPathFactory) -> Lab:
     root = tmp_path_factory.mktemp("docs")
-    (root / "shared").symlink_to(SHARED_DATA.parent, target_is_directory=True)
-    venv = _throwaway_venv(root / "venv")
-    base = root / "clone"
-    (base / "sessions").mkdir(parents=True)
-    for recipe in (REPO / "sessions").glob("*.toml"):
-        shutil.copy(recipe, base / "sessions")
-    shutil.copytree(THIRDPARTY, base / "tests" / "thirdparty",
-                    ignore=shutil.ignore_patterns("*.egg-info", "__pycache__", "build"))
+    venv = _throwaway_venv(root / "venv")  # one per worker: a document may pip install into it
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     env.update(PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}", VIRTUAL_ENV=str(venv), MPLBACKEND="Agg")
-    proc = _bash(DEMO_COMMAND, base, env)
-    assert proc.returncode == 0, _explain(DEMO_COMMAND, base, proc)
-    return Lab(base, env)
+
+    def clone_with_demo(folder: Path) -> None:
+        """The clone-like folder (recipes, test plugins, ../shared) holding the demo's session: built once
+        per test run, then only copied (see :func:`run_document`)."""
+        (folder / "shared").symlink_to(SHARED_DATA.parent, target_is_directory=True)
+        base = folder / "clone"
+        (base / "sessions").mkdir(parents=True)
+        for recipe in (REPO / "sessions").glob("*.toml"):
+            shutil.copy(recipe, base / "sessions")
+        shutil.copytree(THIRDPARTY, base / "tests" / "thirdparty",
+                        ignore=shutil.ignore_patterns("*.egg-info", "__pycache__", "build"))
+        proc = _bash(DEMO_COMMAND, base, env)
+        assert proc.returncode == 0, _explain(DEMO_COMMAND, base, proc)
+
+    return Lab(built_once(tmp_path_factory, "docs-demo", clone_with_demo) / "clone", env)
 
 
 def _bash(command: str, cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
