@@ -8,6 +8,7 @@ computations whose conditioning is not a single matrix's:
 * :func:`natural_end_error` -- an interpolating natural spline's derivative near a run end;
 * :func:`butterworth_ramp_transient` -- the zero-phase Butterworth filter's start-up error on a line;
 * :func:`kabsch_cond` -- rotation fit (Kabsch / polar factor) to rounded marker positions;
+* :func:`perturbation_rounding` -- any pipeline's rounding, from its measured sensitivity;
 * :data:`F32` -- one rounding to float32 (C3D float storage).
 
 Smoothing spline. scipy solves ``(X + λ W⁻¹E) c = y`` in the natural-spline basis (Woltring's
@@ -27,6 +28,8 @@ CPUs), so the bound must be the worst case, at λ = n.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -189,3 +192,38 @@ def natural_end_error(h: float, curvature: float, k: ArrayLike) -> FloatArray:
         Distance from the nearest run end (samples).
     """
     return h * curvature / (2.0 * np.sqrt(3.0)) * (2.0 - np.sqrt(3.0)) ** np.asarray(k, dtype=float)
+
+
+def perturbation_rounding(func: Callable[[FloatArray], ArrayLike], points: ArrayLike, ops: float = 10,
+                          delta: float = 1e-6, seed: int = 0) -> FloatArray:
+    """Rounding bound on ``func(points)`` for exact ``points``, from its measured sensitivity.
+
+    Rounding perturbs every coordinate by a few eps · |coordinate|, in no particular direction; the
+    response of ``func`` to a random Gaussian perturbation of every coordinate by ``delta`` (linear
+    regime, far above rounding) is its response to such a perturbation per unit, so the bound is
+    ``|func(p + delta g) - func(p)| / delta · roundoff(scale=max |p|, ops=ops)`` per output. This is
+    the conditioning of a pipeline (grouping, pose fits, least squares, closed forms) computed
+    rather than guessed; SAFETY covers the spread between one random direction and another.
+
+    Parameters
+    ----------
+    func : callable
+        Maps the points (any shape, NaN kept) to the outputs compared (array_like).
+    points : array_like
+        The exact input coordinates.
+    ops : float
+        Rounded operations producing the coordinates' error (see :func:`tests.tolerances.roundoff`).
+    delta, seed : float, int
+        Perturbation size (unit of ``points``) and its random direction.
+
+    Returns
+    -------
+    ndarray
+        Absolute bound per output (unit of the output), same shape as ``func(points)``.
+    """
+    p = np.asarray(points, dtype=float)
+    g = np.random.default_rng(seed).standard_normal(p.shape)
+    base = np.asarray(func(p), dtype=float)
+    moved = np.asarray(func(p + delta * g), dtype=float)
+    per_unit = roundoff(scale=float(np.nanmax(np.abs(p))), ops=ops) / delta
+    return np.abs(moved - base) * per_unit
