@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from tests.support import plugin_site, run_cli
+from tests.tolerances import roundoff
 
 PLUGIN = '''
 import numpy as np
@@ -98,6 +99,8 @@ def test_units_and_vectors_reach_the_algorithm_converted(survey_site: Path, tmp_
         run = f["results/survey_aim/run-0001"]
         params = json.loads(run.attrs["parameters"])
         position = run["position"][()]
-    assert params["speed"] == pytest.approx(1.0) and params["seconds"] == 0.25
-    assert params["camera_center"] == pytest.approx([435.7, 202.6, 1442.0])
-    np.testing.assert_allclose(position, [435.7 + 250.0, 202.6, 1442.0], rtol=0, atol=1e-9)
+    # unit conversions (3.6 km/h, 0.4357 m, 20.26 cm): a product and a parse each, rounding only
+    assert params["speed"] == pytest.approx(1.0, abs=roundoff(scale=1.0, ops=3)) and params["seconds"] == 0.25
+    assert params["camera_center"] == pytest.approx([435.7, 202.6, 1442.0], abs=roundoff(scale=1442.0, ops=3))
+    np.testing.assert_allclose(position, [435.7 + 250.0, 202.6, 1442.0], rtol=0, atol=roundoff(scale=1442.0, ops=6))
+

@@ -16,6 +16,9 @@ from mirrorlab.plugins.kinematics import (
     write_csv,
 )
 
+from tests.derived_bounds import F32
+from tests.tolerances import abs_err, roundoff
+
 MISSING = {"SCAP_CP": 92, "LARMl": 49, "STERr": 32, "STERl": 31, "STYLu": 29, "LASTC": 23, "MEDH": 22,
            "boite:droite_int": 10, "boite:gauche_ext": 6, "boite:gauche_int": 5, "boite:droite_ext": 3,
            "CLAV_post": 2, "CLAVl": 1}
@@ -28,7 +31,7 @@ def test_read_c3d_real(data_dir):
     counts = {lab.removeprefix("Daphnee:"): int(n) for lab, n in zip(d.labels, np.isnan(d.points[..., 0]).sum(0)) if n}
     assert counts == MISSING
     assert np.isnan(d.points).any(-1).sum() == np.isnan(d.points).all(-1).sum()  # whole points missing
-    assert d.time[0] == 0.0 and d.time[-1] == pytest.approx(5.79)
+    assert d.time[0] == 0.0 and d.time[-1] == pytest.approx(5.79, abs=roundoff(scale=5.79, ops=2))  # 579 / 100.0
     with pytest.raises(KinematicsIOError, match="similar"):
         d.marker("ACRO")
 
@@ -38,7 +41,8 @@ def test_read_trc_real_truncated(data_dir):
         d = read_trc(data_dir / "mocap" / "markers.trc")
     assert d.rate == 100.0 and d.points.shape == (93, 51, 3)  # header says 652 frames
     assert d.labels[:2] == ["ASISl", "ASISr"] and d.labels[0] != ""
-    assert d.points[0, 0] == pytest.approx([733.7041, 80.9832, 191.8668])
+    # decimal text parsed (correctly rounded) and scaled by 1 (mm): one rounding
+    assert d.points[0, 0] == pytest.approx([733.7041, 80.9832, 191.8668], abs=roundoff(scale=733.7041))
 
 
 def test_read_trc_units_and_blanks(tmp_path):
@@ -55,8 +59,10 @@ def test_read_trc_units_and_blanks(tmp_path):
     )
     d = read_trc(p)
     assert d.labels == ["A", "B"] and d.rate == 50.0
-    assert d.points[0, 0] == pytest.approx([100, 200, 300]) and np.isnan(d.points[0, 1]).all()
-    assert d.points[1, 1] == pytest.approx([1000, 2000, 3000])
+    # metres × 1000: the parsed decimal's rounding and the product's
+    assert d.points[0, 0] == pytest.approx([100, 200, 300], abs=roundoff(scale=300.0, ops=2))
+    assert np.isnan(d.points[0, 1]).all()
+    assert d.points[1, 1] == pytest.approx([1000, 2000, 3000], abs=roundoff(scale=3000.0, ops=2))
 
 
 def test_c3d_round_trip(tmp_path):
@@ -69,7 +75,8 @@ def test_c3d_round_trip(tmp_path):
     d = read_c3d(p)
     assert d.labels == labels and d.rate == 42.0
     assert np.array_equal(np.isnan(d.points), np.isnan(pts))
-    assert np.allclose(d.points, pts, equal_nan=True, atol=1e-3)  # float32 storage
+    assert abs_err(d.points, pts) <= F32 * np.nanmax(np.abs(pts))  # float32 storage: one rounding
+
     with pytest.raises(KinematicsIOError):
         write_c3d(p, labels[:2], 42.0, pts)
 

@@ -36,7 +36,10 @@ def test_free_flight_acceleration_is_g(ball, method):
     med = np.median(np.concatenate(pooled), axis=0)
     per_flight = np.array(per_flight)
     print(method, "median acc (m/s^2):", (med / 1000).round(3), "per flight z:", (per_flight[:, 2] / 1000).round(3))
+    # real throws: air drag (a few % of g for a ball at these speeds), marker noise differentiated
+    # twice, and the tracker's gaps; physical plausibility margins, not rounding-level claims
     assert abs(-med[2] - G) < 0.03 * G
+
     assert np.all(np.abs(-per_flight[:, 2] - G) < 0.04 * G)
     assert np.all(np.abs(med[:2]) < 0.2e3)
     assert np.all(np.abs(per_flight[:, :2]) < 0.35e3)

@@ -12,7 +12,9 @@ import pytest
 from mirrorlab.plugins.kinematics import read_c3d, write_c3d
 from mirrorlab.plugins.kinematics.synthetic import tumbling_box_markers
 
+from tests.derived_bounds import F32
 from tests.support import SHARED_DATA, run_cli
+from tests.tolerances import abs_err, roundoff
 
 C3D = SHARED_DATA / "mocap" / "markers_analogs.c3d"
 MOT = SHARED_DATA / "mocap" / "inverse_kin.mot"
@@ -46,7 +48,8 @@ def test_import_layout(session):
         g = f["markers/trial"]
         assert g["points"].shape == (580, 51, 3) and g["points"].dtype == np.float64
         assert np.array_equal(g["points"][()], src.points, equal_nan=True)
-        assert np.allclose(g["time"][()], np.arange(580) / 100.0)
+        # (first_frame + k) / rate, rate = 100.0 exactly in the file: one or two roundings
+        assert abs_err(g["time"][()], np.arange(580) / 100.0) <= roundoff(scale=5.79, ops=2)
         assert json.loads(g.attrs["labels"]) == src.labels
         assert g.attrs["rate"] == 100.0 and g.attrs["units"] == "mm" and g.attrs["time_unit"] == "s"
         assert g.attrs["source_sha256"] == hashlib.sha256(C3D.read_bytes()).hexdigest()
@@ -63,6 +66,8 @@ def test_elbow_angles_match_opensim(session, tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["runs"][0].startswith("/results/upper_limb_angles/") and summary["runs"][0].endswith(": ok")
+    # a different model (OpenSim's fitted skeleton) on the same real trial: 1.62° RMS documented in
+    # docs/kinematics.md; 2° is the validation's acceptance margin (model disagreement, not rounding)
     assert summary["comparison"]["rms_deg"] < 2.0 and summary["comparison"]["rows"] >= 70
     assert _png(figs / "angles.png")
     # independent check on the stored result (not on the CLI's own comparison)
@@ -76,7 +81,7 @@ def test_elbow_angles_match_opensim(session, tmp_path):
     rows = np.array([[float(x) for x in ln.split(",")[: len(cols)]] for ln in lines[h + 2:] if ln.strip()])
     d = np.degrees(theta3[np.rint(rows[:, 0] * 100).astype(int)]) - rows[:, cols.index("elbow_flexion")]
     ok = np.isfinite(d)
-    assert ok.sum() >= 70 and float(np.sqrt(np.mean(d[ok] ** 2))) < 2.0
+    assert ok.sum() >= 70 and float(np.sqrt(np.mean(d[ok] ** 2))) < 2.0        # as above
 
 
 @pytest.mark.data
@@ -88,6 +93,7 @@ def test_isb_elbow_on_the_c3d_file_directly():
     angles = json.loads(proc.stdout)["angles"]
     assert set(angles) == {"isb_shoulder_1_Y", "isb_shoulder_2_X", "isb_shoulder_3_Y", "isb_elbow_flexion",
                            "isb_elbow_carrying", "isb_elbow_pronation"}
+    # a plausibility bracket on real data (the trial's elbow flexes to ~120°), not a precision claim
     assert angles["isb_elbow_flexion"]["frames"] == 551 and 100 < angles["isb_elbow_flexion"]["max_deg"] < 140
 
 
@@ -98,7 +104,8 @@ def test_export_c3d_round_trip_and_csv(session, tmp_path):
     back, src = read_c3d(out), read_c3d(C3D)
     assert back.labels == src.labels and back.rate == 100.0
     assert np.array_equal(np.isnan(back.points), np.isnan(src.points))
-    assert np.allclose(back.points, src.points, equal_nan=True, atol=1e-3)
+    # float C3D: float32 values read into float64 and written back as float32: at most one rounding
+    assert abs_err(back.points, src.points) <= F32 * np.nanmax(np.abs(src.points))
     csv = tmp_path / "m.csv"
     assert run_cli("kinematics", "export", str(session), "/markers/trial", "--format", "csv",
                    "--out", str(csv)).returncode == 0
@@ -112,7 +119,7 @@ def test_derivatives_on_a_session_and_on_a_trc(session, tmp_path):
     assert proc.returncode == 0, proc.stderr
     s = json.loads(proc.stdout)
     assert list(s["markers"]) == ["Daphnee:STER", "Daphnee:EPICl"] and s["runs"][0].endswith(": ok")
-    assert 0.5 < s["markers"]["Daphnee:EPICl"]["max_speed_m_s"] < 3.0
+    assert 0.5 < s["markers"]["Daphnee:EPICl"]["max_speed_m_s"] < 3.0    # plausibility bracket for a wrist marker
     assert _png(tmp_path / "derivatives.png")
     trc = run_cli("kinematics", "derivatives", str(SHARED_DATA / "mocap" / "markers.trc"), "--markers", "ASISl",
                   "--no-progress")
@@ -129,9 +136,14 @@ def test_rigid_tumbling_box_angular_momentum(tmp_path):
                    "--figures", str(tmp_path), "--json", "--no-progress")
     assert proc.returncode == 0, proc.stderr
     s = json.loads(proc.stdout)
-    assert s["frames_with_pose"] == 201 and s["rms_mm_mean"] < 1e-3       # float32 C3D storage
+    # float32 C3D storage moves each coordinate by <= F32/2 · |m|: the fit's residual is at most that
+    assert s["frames_with_pose"] == 201 and s["rms_mm_mean"] <= F32 * np.abs(m).max()
+    # that storage noise (F32 · 2.4 m = 2.8e-4 mm on a 0.2 m box: 1.4e-6 rad) differentiated by the
+    # interpolating spline at h = 5 ms (gain ~1.7/h) is ~5e-4 rad/s, 7e-5 of |w| = 6.8 rad/s per frame;
+    # the literals (1e-4 for the mean, 1e-3 for the spread over the frames) cover it
     assert s["H_mean_kg_m2_s"] == pytest.approx(np.linalg.norm(body.H_world[0]), rel=1e-4)
     assert s["H_variation"] < 1e-3
+
     assert _png(tmp_path / "rigid.png")
 
 

@@ -20,7 +20,9 @@ from mirrorlab.plugins.mechanisms.algorithms import (
 from mirrorlab.plugins.mechanisms.synthetic import THESIS_FOUR_BAR, four_bar_markers
 from mirrorlab.plugins.mechanisms.walls import astroid_motion
 
+from tests.derived_bounds import perturbation_rounding
 from tests.support import run_cli
+from tests.tolerances import roundoff
 
 
 def test_every_algorithm_is_registered() -> None:
@@ -36,8 +38,14 @@ def test_four_bar_algorithm_scales_by_the_reference_distance() -> None:
     ref = float(np.linalg.norm(truth[0, 0] - truth[0, 2]))     # F1-F3, the farthest frame markers
     out = execute(FourBarAlgorithm, {"points": px}, {"reference_distance": ref})
     assert out.status == "ok", out.error
-    np.testing.assert_allclose(out.outputs["lengths"], list(THESIS_FOUR_BAR.values()), atol=1e-8)
-    assert out.outputs["scale"] == pytest.approx(1.125, rel=1e-12)
+    # exact markers: rounding only, from the reconstruction's measured sensitivity (in px, then scaled)
+    def lengths(p: np.ndarray) -> np.ndarray:
+        return execute(FourBarAlgorithm, {"points": p}, {"reference_distance": ref}).outputs["lengths"]
+
+    tol = perturbation_rounding(lengths, px).max()
+    np.testing.assert_allclose(out.outputs["lengths"], list(THESIS_FOUR_BAR.values()), rtol=0, atol=tol)
+    # reference distance over the measured one: a few roundings
+    assert out.outputs["scale"] == pytest.approx(1.125, abs=roundoff(scale=1.125, ops=10))
     bad = execute(FourBarAlgorithm, {"points": px[:, :5]}, {})
     assert bad.status == "failed" and "GroupingError" in bad.error
 
@@ -48,10 +56,12 @@ def test_rigid_groups_swept_and_centrodes_algorithms() -> None:
     assert g.status == "ok" and g.outputs["group"].tolist() == [0, 0, 0, 1, 1, 2, 2, 3, 3]
     a, b = astroid_motion(3.0, 1000)
     s = execute(SweptArea, {"a": a, "b": b}, {"method": "exact"})
+    # the union of 1000 positions: O(n⁻²) discretisation, 6.2e-7 relative (test_swept)
     assert s.outputs["area"] == pytest.approx(3 * np.pi * 9 / 32, rel=1e-4)
     wrong = execute(SweptArea, {"a": a, "b": b}, {"method": "triangles"})
     assert wrong.status == "failed" and "(T, 3)" in wrong.error
     c = execute(Centrodes, {"a": a, "b": b}, {})
+    # instant centres from differences of 1000 positions: O(dtheta²) L = (pi/2 / 1000)² · 3 = 7e-6
     assert np.nanmax(np.abs(np.hypot(*c.outputs["fixed"][5:-5].T) - 3)) < 1e-4
 
 
@@ -59,6 +69,8 @@ def test_cli_astroid_and_swept(tmp_path: Path) -> None:
     proc = run_cli("mechanisms", "astroid", "--json")
     assert proc.returncode == 0, proc.stderr
     res = json.loads(proc.stdout)
+    # method errors: the union's O(n⁻²) (well below 0.01 %), the thesis raster's boundary layer at
+    # 170 px (the spec's 4.0 %, ±0.5 % for edge pixels that rounding can flip)
     assert abs(res["union"]["error_percent"]) < 0.01 and 3.5 < res["raster_170px"]["error_percent"] < 4.5
     ang = np.linspace(0, np.pi / 2, 41)
     d = 150 * np.stack([np.cos(ang), np.sin(ang), 0 * ang], -1)
@@ -80,7 +92,7 @@ def test_cli_four_bar_from_npy_and_session(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     res = json.loads(proc.stdout)
     for k, v in THESIS_FOUR_BAR.items():
-        assert res["lengths_mm"][k] == pytest.approx(v, rel=0.01)
+        assert res["lengths_mm"][k] == pytest.approx(v, rel=0.01)          # the 1 % acceptance on digitising noise
     assert Path(res["figures"][0]).stat().st_size > 10_000
     with Session.create(tmp_path / "s.h5") as s:
         s.write_group("markers/fb", {"points": points})
@@ -100,4 +112,7 @@ def test_cli_optimal_wall() -> None:
                    "--final-strips", "800", "--maxiter", "50", "--json")
     assert proc.returncode == 0, proc.stderr
     res = json.loads(proc.stdout)
+    # a short run: below the arc walls' 2.552; the start (vertical wall = astroid, 3 pi l² / 32 =
+    # 2.65072) on 1000 positions is off by O(n⁻²) ~ 1e-6 plus the figure's 4 decimals
     assert res["area"] < 2.56 and len(res["w"]) == 61 and res["start_area"] == pytest.approx(2.6507, abs=1e-3)
+

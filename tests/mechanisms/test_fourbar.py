@@ -15,6 +15,21 @@ from mirrorlab.plugins.mechanisms import (
 )
 from mirrorlab.plugins.mechanisms.synthetic import TABLE_5_1, THESIS_FOUR_BAR, four_bar_markers
 
+from tests.derived_bounds import perturbation_rounding
+from tests.tolerances import roundoff
+
+
+def _rounding_bounds(points: np.ndarray, method: str = "least_squares", **kw: object) -> tuple[float, float]:
+    """Rounding bounds (mm) on the link lengths and on the joints reconstructed from exact markers,
+    from the reconstruction's measured sensitivity (tests/derived_bounds.py); an exact initial
+    estimate is refined by least squares to residuals at that same level, so this covers both methods."""
+    def outputs(p: np.ndarray) -> np.ndarray:
+        fb = reconstruct_four_bar(p, method, **kw)
+        return np.concatenate([list(fb.lengths.values()), fb.joints.ravel()])
+
+    bound = perturbation_rounding(outputs, points)
+    return float(bound[:4].max()), float(bound[4:].max())
+
 
 def _true_joints(frames: int, theta0: float = 0.0) -> np.ndarray:
     scene = FourBarScene(theta0=theta0)
@@ -27,18 +42,21 @@ def _true_joints(frames: int, theta0: float = 0.0) -> np.ndarray:
 def test_noiseless_shuffled_is_exact(method: str, theta0: float) -> None:
     points, _ = four_bar_markers(30, noise="none", theta0=theta0, seed=1)
     fb = reconstruct_four_bar(points, method)
+    tol_lengths, tol_joints = _rounding_bounds(points, method)
     for k, v in THESIS_FOUR_BAR.items():
-        assert fb.lengths[k] == pytest.approx(v, abs=1e-9), k
-    np.testing.assert_allclose(fb.joints, _true_joints(30, theta0), atol=1e-8)
-    np.testing.assert_allclose(fb.ground_pivots, [[0.0, 0.0], [230.0, 0.0]], atol=1e-9)
-    assert fb.rms < 1e-9
+        assert fb.lengths[k] == pytest.approx(v, abs=tol_lengths), k
+    truth = _true_joints(30, theta0)                     # the scene's own rounding on top
+    np.testing.assert_allclose(fb.joints, truth, rtol=0, atol=tol_joints + roundoff(scale=np.abs(truth).max(), ops=10))
+    np.testing.assert_allclose(fb.ground_pivots, [[0.0, 0.0], [230.0, 0.0]], rtol=0, atol=tol_joints)
+    # the model reproduces exact markers: residuals at the markers' rounding
+    assert fb.rms <= roundoff(scale=float(np.abs(points).max()), ops=10)
     assert fb.joints.shape == (30, 4, 2) and fb.residuals.shape == (30, 9)
 
 
 def test_noiseless_with_gaps_least_squares() -> None:
     points, _ = four_bar_markers(30, noise="none", missing=0.1, seed=2)
     fb = reconstruct_four_bar(points)
-    assert max(abs(fb.lengths[k] - v) for k, v in THESIS_FOUR_BAR.items()) < 1e-9
+    assert max(abs(fb.lengths[k] - v) for k, v in THESIS_FOUR_BAR.items()) <= _rounding_bounds(points)[0]
     assert np.isnan(fb.residuals).sum() > 0                     # missing samples stay NaN
 
 
@@ -50,6 +68,8 @@ def test_thesis_digitising_noise_against_table_5_1(capsys: pytest.CaptureFixture
         ls.append(reconstruct_four_bar(points).errors(THESIS_FOUR_BAR))
         th.append(reconstruct_four_bar(points, "thesis").errors(THESIS_FOUR_BAR))
     worst = {k: max(abs(e[k]) for e in ls) for k in THESIS_FOUR_BAR}
+    # the acceptance figure of the least-squares method on the thesis's digitising noise (±0.56 and
+    # ±1.26 mm uniform over 30 frames); a statistical figure (max over 20 seeds), not rounding
     assert max(worst.values()) < 0.01, worst
     with capsys.disabled():
         print("\nlink     Table 5.1 %   LS max |err| %   thesis median |err| %   thesis max |err| %")
@@ -63,13 +83,18 @@ def test_gaussian_one_unit_noise_least_squares_median() -> None:
     errs = [reconstruct_four_bar(four_bar_markers(30, noise="gaussian", seed=s)[0]).errors(THESIS_FOUR_BAR)
             for s in range(10)]
     med = {k: float(np.median([abs(e[k]) for e in errs])) for k in THESIS_FOUR_BAR}
+    # statistical acceptance figure (median over 10 seeds of the harsher noise reading); the bound is
+    # not derived from first principles (error propagation through grouping, circle fits and the
+    # model fit), it rests on the spec's 2 %
     assert max(med.values()) < 0.02, med
 
 
 def test_residuals_measure_the_noise() -> None:
     points, _ = four_bar_markers(30, noise="uniform", seed=7, shuffle=False)
     fb = reconstruct_four_bar(points)
-    # uniform errors of +-0.5625 and +-1.256 mm: RMS sqrt((0.5625^2 + 1.256^2) / 3) = 0.79 mm per marker
+    # uniform errors of +-0.5625 and +-1.256 mm: RMS sqrt((0.5625^2 + 1.256^2) / 3) = 0.79 mm per marker,
+    # less the fitted parameters' share (55 of ~420 coordinates: x0.93); over ~200 markers the RMS has
+    # a ~5 % standard error, so the bracket is > 4 standard errors wide on each side
     assert 0.5 < fb.rms < 1.0
     assert np.isnan(fb.residuals[:, list(fb.links["ground"])]).all()
 
@@ -78,8 +103,9 @@ def test_refine_off_and_registration_off_still_work() -> None:
     points, _ = four_bar_markers(30, noise="none", seed=8)
     a = reconstruct_four_bar(points, refine=False)
     b = reconstruct_four_bar(points, register=False)
+    tol_a, tol_b = _rounding_bounds(points, refine=False)[0], _rounding_bounds(points, register=False)[0]
     for k, v in THESIS_FOUR_BAR.items():
-        assert a.lengths[k] == pytest.approx(v, abs=1e-6) and b.lengths[k] == pytest.approx(v, abs=1e-9)
+        assert a.lengths[k] == pytest.approx(v, abs=tol_a) and b.lengths[k] == pytest.approx(v, abs=tol_b)
 
 
 def test_film_drift_is_removed_by_registration() -> None:
@@ -90,7 +116,7 @@ def test_film_drift_is_removed_by_registration() -> None:
     R = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
     drifted = np.einsum("tij,tmj->tmi", R, points) + rng.normal(scale=3.0, size=(30, 1, 2))
     fb = reconstruct_four_bar(drifted)
-    assert max(abs(fb.lengths[k] - v) for k, v in THESIS_FOUR_BAR.items()) < 1e-8
+    assert max(abs(fb.lengths[k] - v) for k, v in THESIS_FOUR_BAR.items()) <= _rounding_bounds(drifted)[0]
 
 
 def test_bad_input_errors() -> None:
@@ -122,6 +148,9 @@ def test_lengths_invariant_under_rigid_motion_and_mirroring(angle: float, dx: fl
     c, s = np.cos(angle), np.sin(angle)
     R = np.array([[c, -s], [s, c]]) @ (np.diag([1.0, -1.0]) if mirror else np.eye(2))
     for method in ("least_squares", "thesis"):
-        fb = reconstruct_four_bar(points @ R.T + [dx, dy], method)
+        moved = points @ R.T + [dx, dy]
+        fb = reconstruct_four_bar(moved, method)
+        tol = _rounding_bounds(moved, method)[0]         # coordinates up to ~1.3 m round coarser
         for k, v in THESIS_FOUR_BAR.items():
-            assert fb.lengths[k] == pytest.approx(v, abs=1e-8), (method, k)
+            assert fb.lengths[k] == pytest.approx(v, abs=tol), (method, k)
+

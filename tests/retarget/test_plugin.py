@@ -9,9 +9,10 @@ import pytest
 from mirrorlab.core import Session
 from mirrorlab.core.registry import get_registry
 
+from tests.retarget.optimum import optimum_bounds
 from tests.support import REPO, run_cli
 
-from .test_fixtures import T1_IN, T1_OUT
+from .test_fixtures import PRINTED, T1_IN, T1_OUT, objective
 
 
 def test_registered_and_runs_through_a_session(tmp_path) -> None:
@@ -22,7 +23,10 @@ def test_registered_and_runs_through_a_session(tmp_path) -> None:
         ref = s.run("retarget", {"joints": X}, {"lengths": "2,2", "axes": "z,y"})
         assert ref.status == "ok"
         out = s.result(ref).outputs
-    assert np.abs(out["q"] - [0.604032, -0.333016]).max() < 1e-6 and T1_OUT.dof == 2
+    # the spec's printed optimum (±5e-7) and LM's stop (20 iterations, converged here)
+    obj = objective(T1_IN, T1_OUT)
+    b = optimum_bounds(obj, out["q"], obj.arms(X))
+    assert (np.abs(out["q"] - [0.604032, -0.333016]).max(axis=1) <= PRINTED + b.q).all() and T1_OUT.dof == 2
 
 
 @pytest.mark.data
@@ -33,6 +37,8 @@ def test_recipe_retarget_bvh_runs(tmp_path) -> None:
     with Session.open(out) as s:
         g = s.file["retarget/cmu_01_01_right_arm"]
         assert g["q"].shape == (2751, 4) and g["input_joints"].shape == (2751, 4, 3)
+        # the CMU arm on its robot: mean 8.1, max 37.9 mm² documented (docs/retarget.md); 100 mm² is a
+        # plausibility margin on real data
         assert float(np.max(g["f"][()])) < 100.0 and int(g.attrs["published"]) == 2751
 
 

@@ -21,6 +21,7 @@ from textual.pilot import Pilot
 from textual.widgets import Input, Static
 
 from tests.support import REPO
+from tests.tolerances import roundoff
 
 LOOP = REPO / "sessions" / "follow_loop.toml"
 SIZE = (80, 24)
@@ -87,7 +88,9 @@ async def test_set_point_from_the_detail_form_is_validated_and_acknowledged(loop
         field.value = "5 deg"
         field.focus()
         await pilot.press("enter")
-        await until(pilot, lambda: math.isclose(actuator.settings["target"], math.radians(5)), "the set-point acked")
+        # 5 deg converted to rad: a product, rounded
+        acked = roundoff(scale=math.radians(5), ops=2)
+        await until(pilot, lambda: abs(actuator.settings["target"] - math.radians(5)) <= acked, "the set-point acked")
         assert str(problem.render()) == ""
         await pilot.press("escape")
         assert not isinstance(app.screen, SourceScreen)

@@ -207,7 +207,9 @@ async def test_plots_find_trajectories_velocities_and_angles(recording: Path) ->
             await until(pilot, lambda: screen.shown.path == select.value, "the trajectory plot")
             assert (screen.shown.xlabel, screen.shown.ylabel) == ("x (mm)", "y (mm)")
             x, y, _ = screen.shown.lines[0]
-            assert np.allclose(y, 0.005 * x ** 2, atol=1.0)  # the parabola y = 50 t², x = 100 t
+            # the parabola y = 50 t², x = 100 t as plotted: a check of what is shown, to a millimetre (the
+            # GCV spline's bias on these noise-free samples is far below it), not of the smoother
+            assert np.allclose(y, 0.005 * x ** 2, atol=1.0)
     finally:
         console.close()
 
