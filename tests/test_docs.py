@@ -18,6 +18,14 @@ Conventions the documents follow, enforced here:
 * Exempt: the README's "Quick start" blocks, exactly two (venv + ``pip install``; CI runs them).
   Blocks without a language (output, trees, usage synopses) and ```toml blocks without a path are
   data, not commands.
+* Printed output (issue 19): a block without a language right after a ```sh block (nothing between
+  them, or one line of prose ending in ``:`` such as "prints:") is what that block's commands print,
+  each command's stdout then its stderr, compared line by line (trailing blanks ignored). ``...``
+  alone on a line stands for any number of lines, and within a line for any text: use it for output
+  left out and for what legitimately varies (times, temporary paths and ids, digits beyond those the
+  document states).
+* A clone stays clean: every file a document's commands write (besides its own file blocks) is
+  matched by ``.gitignore``.
 """
 
 from __future__ import annotations
@@ -41,14 +49,16 @@ FENCE = re.compile(r"^```(\w*)\s*$")
 FILE_HEADER = re.compile(r"^# (?P<path>[\w.-]+(?:/[\w.-]+)*\.(?:py|toml))(?: \(continued\))?$")
 EXPECT = re.compile(r"\(exit (\d+)\)")
 RUNNABLE = {"sh", "python", "py"}
+OUTPUT_LEAD_IN = re.compile(r"^[^#].*:$")  # "prints:" between a ```sh block and the output it shows
 
 
-@dataclass
+@dataclass(frozen=True)
 class Block:
     lang: str
     text: str
     heading: str
     line: int
+    lead_in: tuple[str, ...] = ()  # the non-blank lines between the previous block and this one
 
     @property
     def file(self) -> str | None:
@@ -59,18 +69,20 @@ class Block:
 def blocks(doc: Path) -> list[Block]:
     """The fenced code blocks of a Markdown file, with the heading they are under."""
     found: list[Block] = []
-    heading, lang, start, body = "", None, 0, []
+    heading, lang, start, body, prose = "", None, 0, [], []
     for n, line in enumerate(doc.read_text().splitlines(), 1):
         m = FENCE.match(line)
         if lang is None and m:
             lang, start, body = m[1], n, []
         elif lang is not None and line.rstrip() == "```":
-            found.append(Block(lang, "\n".join(body), heading, start))
-            lang = None
+            found.append(Block(lang, "\n".join(body), heading, start, tuple(prose)))
+            lang, prose = None, []
         elif lang is not None:
             body.append(line)
-        elif line.startswith("#"):
-            heading = line.lstrip("#").strip()
+        else:
+            prose += [line.strip()] if line.strip() else []
+            if line.startswith("#"):
+                heading = line.lstrip("#").strip()
     assert lang is None, f"{doc}: unclosed code block from line {start}"
     return found
 
@@ -100,6 +112,41 @@ def exempt(doc: Path, doc_blocks: list[Block]) -> list[Block]:
     return quick
 
 
+def shown_outputs(doc_blocks: list[Block]) -> dict[Block, Block]:
+    """Each ```sh block that a document follows with the output it prints."""
+    return {sh: out for sh, out in zip(doc_blocks, doc_blocks[1:]) if sh.lang == "sh" and out.lang == ""
+            and (not out.lead_in or (len(out.lead_in) == 1 and OUTPUT_LEAD_IN.match(out.lead_in[0])))}
+
+
+ANY_LINES = r"(?:[^\n]*\n)*"
+
+
+def _output_pattern(shown: list[str]) -> str:
+    return "".join(ANY_LINES if line.strip() == "..." else "[^\n]*".join(map(re.escape, line.rstrip().split("..."))) + "\n"
+                   for line in shown)
+
+
+def _lines(printed: str) -> str:
+    lines = [line.rstrip() for line in printed.splitlines()]
+    while lines and not lines[-1]:
+        lines.pop()
+    return "".join(line + "\n" for line in lines)
+
+
+def prints_as_shown(shown: str, printed: str) -> bool:
+    """Whether ``printed`` is the output a document shows, line by line, ``...`` standing for any lines
+    (alone on a line) or any text (within one)."""
+    return re.fullmatch(_output_pattern(shown.splitlines()), _lines(printed)) is not None
+
+
+def first_line_not_printed(shown: str, printed: str) -> int:
+    """The index of the first line of ``shown`` that the output does not match (``len`` if the lines all match but
+    the output goes on)."""
+    lines = shown.splitlines()
+    return next(k for k in range(len(lines), -1, -1)
+                if re.fullmatch(_output_pattern(lines[:k]) + ANY_LINES, _lines(printed)))
+
+
 def doc_files(doc_blocks: list[Block]) -> dict[str, str]:
     """The files a document shows: its blocks per path (header line dropped), one blank line between."""
     parts: dict[str, list[str]] = {}
@@ -113,6 +160,7 @@ def doc_files(doc_blocks: list[Block]) -> dict[str, str]:
 class Lab:
     base: Path        # the clone-like folder holding demo.h5
     env: dict[str, str]
+    clone: frozenset[str]  # the files of the clone in it (paths relative to base), before any command ran
 
 
 def _throwaway_venv(where: Path) -> Path:
@@ -138,7 +186,8 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Lab:
 
     def clone_with_demo(folder: Path) -> None:
         """The clone-like folder (recipes, test plugins, ../shared) holding the demo's session: built once
-        per test run, then only copied (see :func:`run_document`)."""
+        per test run, then only copied (see :func:`run_document`); ``clone-files.txt`` lists its files
+        from before the demo ran."""
         (folder / "shared").symlink_to(SHARED_DATA.parent, target_is_directory=True)
         base = folder / "clone"
         (base / "sessions").mkdir(parents=True)
@@ -146,10 +195,13 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> Lab:
             shutil.copy(recipe, base / "sessions")
         shutil.copytree(THIRDPARTY, base / "tests" / "thirdparty",
                         ignore=shutil.ignore_patterns("*.egg-info", "__pycache__", "build"))
+        (folder / "clone-files.txt").write_text("\n".join(sorted(
+            p.relative_to(base).as_posix() for p in base.rglob("*") if p.is_file())))
         proc = _bash(DEMO_COMMAND, base, env)
         assert proc.returncode == 0, _explain(DEMO_COMMAND, base, proc)
 
-    return Lab(built_once(tmp_path_factory, "docs-demo", clone_with_demo) / "clone", env)
+    folder = built_once(tmp_path_factory, "docs-demo", clone_with_demo)
+    return Lab(folder / "clone", env, frozenset((folder / "clone-files.txt").read_text().splitlines()))
 
 
 def _bash(command: str, cwd: Path, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
@@ -162,11 +214,17 @@ def _explain(what: str, cwd: Path, proc: subprocess.CompletedProcess[str]) -> st
             f"\n--- stderr\n{proc.stderr[-3000:]}")
 
 
+def workdir(doc: Path, lab: Lab) -> Path:
+    return lab.base.parent / f"run-{doc.stem}"
+
+
 def run_document(doc: Path, lab: Lab) -> dict[str, subprocess.CompletedProcess[str]]:
-    """Write the document's files, then run its commands and scripts in order; return the runs."""
-    work = lab.base.parent / f"run-{doc.stem}"
+    """Write the document's files, then run its commands and scripts in order, checking the output it shows;
+    return the runs."""
+    work = workdir(doc, lab)
     shutil.copytree(lab.base, work)
     doc_blocks = blocks(doc)
+    shown = shown_outputs(doc_blocks)
     skip = exempt(doc, doc_blocks)
     for name, text in doc_files(doc_blocks).items():
         (work / name).parent.mkdir(parents=True, exist_ok=True)
@@ -181,6 +239,7 @@ def run_document(doc: Path, lab: Lab) -> dict[str, subprocess.CompletedProcess[s
             assert proc.returncode == 0, _explain(f"{doc.name} line {b.line} (python block)", work, proc)
             runs[f"python block at line {b.line}"] = proc
             continue
+        printed = ""
         for command in commands(b):
             if doc.name == "README.md" and command.split("#")[0].strip() == DEMO_COMMAND:
                 continue  # the lab fixture ran it
@@ -189,7 +248,28 @@ def run_document(doc: Path, lab: Lab) -> dict[str, subprocess.CompletedProcess[s
             assert proc.returncode == (int(expected[1]) if expected else 0), \
                 _explain(f"{doc.name} line {b.line}: {command}", work, proc)
             runs[command.split("#")[0].strip()] = proc
+            printed += proc.stdout + proc.stderr
+        if b in shown and not prints_as_shown(shown[b].text, printed):
+            k = first_line_not_printed(shown[b].text, printed)
+            where = (f"line {shown[b].line + 1 + k}, {shown[b].text.splitlines()[k]!r}, is not printed"
+                     if k < len(shown[b].text.splitlines()) else "the output goes on (end the block with '...')")
+            pytest.fail(f"{doc.name}: the output shown at line {shown[b].line} differs from what the commands of line "
+                        f"{b.line} print: {where}; they print:\n{printed}")
     return runs
+
+
+def untracked_outputs(doc: Path, lab: Lab) -> list[str]:
+    """The files in a document's folder (after its run) that ``git status`` would list as untracked in a clone:
+    not the clone's, not the document's own file blocks, not matched by the repository's ``.gitignore``."""
+    work = workdir(doc, lab)
+    written = {p.relative_to(work).as_posix() for p in work.rglob("*") if p.is_file()} - lab.clone \
+        - set(doc_files(blocks(doc)))
+    shutil.copy(REPO / ".gitignore", work / ".gitignore")  # the folder as a fresh git work tree with only that
+    subprocess.run(["git", "init", "--quiet", str(work)], check=True)
+    ignored = subprocess.run(["git", "-C", str(work), "-c", "core.excludesFile=/dev/null", "check-ignore", "--no-index",
+                              "--stdin"], input="\n".join(sorted(written)), capture_output=True, text=True)
+    assert ignored.returncode in (0, 1), ignored.stderr  # 1: none ignored
+    return sorted(written - set(ignored.stdout.splitlines()))
 
 
 def test_readme_names_the_demo_session() -> None:
@@ -208,10 +288,31 @@ def test_only_known_block_kinds() -> None:
                     f"{doc.name} line {b.line}: a command in a plain block; put it in a ```sh block"
 
 
+def test_shown_output_wildcards(tmp_path: Path) -> None:
+    """``...`` alone on a line is any lines (none too), within a line any text; everything else must match."""
+    printed = "header\n  a   0.841 mm  \n  b   1.2 s\nfooter\n\n"
+    for shown in ("header\n  a   0.841 mm\n  b   1.2 s\nfooter", "header\n...\nfooter", "...\nheader\n...\nfooter\n...",
+                  "header\n  a   0.84... mm\n  b   ... s\nfooter"):
+        assert prints_as_shown(shown, printed), shown
+    for shown in ("header\n  a   0.842 mm\n  b   1.2 s\nfooter", "header\n  a   0.841 mm", "header\nfooter",
+                  "header\n  a   0.84... mm\n  b   ... s\nfooter\nmore"):
+        assert not prints_as_shown(shown, printed), shown
+    assert first_line_not_printed("header\n  a   0.842 mm\n...", printed) == 1
+    assert first_line_not_printed("header\n  a   0.841 mm", printed) == 2  # all shown, but more printed
+    # the output a block shows: right after it, or after one line of prose ending in ":"
+    doc = tmp_path / "doc.md"
+    for between, is_output in (("", True), ("prints:\n\n", True), ("A transcript\nof the protocol:\n\n", False),
+                               ("## Output\n\n", False)):
+        doc.write_text(f"```sh\nx\n```\n\n{between}```\ny\n```\n")
+        assert bool(shown_outputs(blocks(doc))) == is_output, between
+
+
 @pytest.mark.parametrize("doc", [pytest.param(d, marks=pytest.mark.data) if "shared/data" in d.read_text() else d
                                  for d in DOCS], ids=lambda p: p.name)
 def test_document_runs_as_written(doc: Path, lab: Lab) -> None:
     runs = run_document(doc, lab)
+    untracked = untracked_outputs(doc, lab)
+    assert not untracked, f"{doc.name}: its commands write files that .gitignore does not match: {untracked}"
     if doc.name == "writing-plugins.md":  # the doc's own package, installed with pip -e, is listed and conforms
         listing = runs["mirrorlab plugins"].stdout
         assert "acme_thermometer" in listing and "acme_drift_rate" in listing, listing

@@ -1,9 +1,11 @@
-"""Packaging: every sub-package is listed, and a built wheel (non-editable install) contains all code."""
+"""Packaging: every sub-package is listed, a built wheel (non-editable install) contains all code, and
+``python`` started beside a clone named ``mirrorlab`` imports the installed package, not the clone (issue 19)."""
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -15,17 +17,25 @@ import pytest
 
 from tests.support import REPO
 
-FOLDERS = {"mirrorlab.core": "core", "mirrorlab.instruments": "instruments", "mirrorlab.plugins": "plugins",
-           "mirrorlab.sessions": "sessions"}
+#: import package -> source folder; ``mirrorlab`` itself is a regular package whose ``__init__.py`` is in core/_mirrorlab
+FOLDERS = {"mirrorlab": "core/_mirrorlab", "mirrorlab.core": "core", "mirrorlab.instruments": "instruments",
+           "mirrorlab.plugins": "plugins", "mirrorlab.sessions": "sessions"}
+TOP_FOLDERS = ("core", "instruments", "plugins", "sessions")
+
+
+def _installed(source: Path) -> str:
+    """Where a file of the source tree lands in an install: below the deepest mapped folder that holds it."""
+    package, folder = max(((p, f) for p, f in FOLDERS.items() if source.is_relative_to(REPO / f)),
+                          key=lambda item: len(Path(item[1]).parts))
+    return "/".join([*package.split("."), *source.relative_to(REPO / folder).parts])
+
+
+def _sources(pattern: str) -> list[Path]:
+    return [p for folder in TOP_FOLDERS for p in (REPO / folder).rglob(pattern)]
 
 
 def _source_packages() -> set[str]:
-    found = set()
-    for package, folder in FOLDERS.items():
-        for init in (REPO / folder).rglob("__init__.py"):
-            rel = init.parent.relative_to(REPO / folder)
-            found.add(".".join([package, *rel.parts]))
-    return found
+    return {_installed(init).removesuffix("/__init__.py").replace("/", ".") for init in _sources("__init__.py")}
 
 
 def test_every_subpackage_is_listed_in_pyproject() -> None:
@@ -50,10 +60,10 @@ def _plugin_modules() -> set[str]:
 
 def test_wheel_contains_every_module(wheel: Path) -> None:
     names = set(zipfile.ZipFile(wheel).namelist())
-    expected = {f"mirrorlab/{folder}/{p.relative_to(REPO / folder).as_posix()}"
-                for folder in FOLDERS.values() for p in (REPO / folder).rglob("*.py")}
+    expected = {_installed(p) for p in _sources("*.py")}
     assert expected <= names, sorted(expected - names)[:10]
-    assert not any(n.startswith("mirrorlab/__init__") for n in names), "mirrorlab must stay a namespace package"
+    assert "mirrorlab/__init__.py" in names, "mirrorlab must be a regular package (see pyproject.toml)"
+    assert not any(n.startswith("mirrorlab/core/_mirrorlab/") for n in names)
     for recipe in ("rssr_acquire.toml", "rssr_analysis.toml"):
         assert f"mirrorlab/sessions/{recipe}" in names, "mirrorlab demo needs its recipes as package data"
     entry_points = next(n for n in names if n.endswith("entry_points.txt"))
@@ -68,24 +78,73 @@ def test_wheel_contains_every_module(wheel: Path) -> None:
         assert f"{path}.py" in names or f"{path}/__init__.py" in names, module
 
 
-def test_fresh_non_editable_install_finds_the_builtins(wheel: Path, tmp_path: Path) -> None:
-    """A venv with the wheel installed (not the editable checkout) discovers every built-in plugin from it."""
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
-    purelib = Path(sysconfig.get_paths(vars={"base": str(venv), "platbase": str(venv)})["purelib"])
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target", str(purelib),
-                    str(wheel)], check=True)
-    # the dependencies from this venv, as a plain path: its .pth files (the editable finder) stay off
+def _venv(where: Path, *install: str) -> tuple[Path, Path]:
+    """A venv (its python and site dir) with ``pip install --target <site> *install`` of mirrorlab alone; the
+    dependencies come from this venv as a plain path, so its .pth files (the project's editable finder) stay off."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(where)], check=True)
+    purelib = Path(sysconfig.get_paths(vars={"base": str(where), "platbase": str(where)})["purelib"])
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target",
+                    str(purelib), *install], check=True, capture_output=True)
     (purelib / "_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    probe = ("import json, mirrorlab.plugins\nfrom mirrorlab.core.registry import Registry\n"
+    return where / "bin" / "python", purelib
+
+
+def _probe(python: Path, cwd: Path) -> dict:
+    """What ``python -c`` started in ``cwd`` imports as mirrorlab, and the built-in plugins it discovers."""
+    probe = ("import json, mirrorlab, mirrorlab.core, mirrorlab.plugins\nfrom mirrorlab.core.registry import Registry\n"
              "r = Registry(entry_points=False)\n"
-             "print(json.dumps({'where': list(mirrorlab.plugins.__path__), 'broken': [p.name for p in r.broken],"
+             "print(json.dumps({'init': mirrorlab.__file__, 'core': mirrorlab.core.__file__,"
+             " 'where': list(mirrorlab.plugins.__path__), 'broken': [p.name for p in r.broken],"
              " 'plugins': sorted(r.plugins), 'algorithms': r.names('algorithm'), 'instruments': r.names('instrument')}))")
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    out = subprocess.run([str(venv / "bin" / "python"), "-c", probe], capture_output=True, text=True, env=env,
-                         cwd=tmp_path, check=True).stdout
-    found = json.loads(out)
-    assert found["where"] == [str(purelib / "mirrorlab" / "plugins")], found["where"]
+    return json.loads(subprocess.run([str(python), "-c", probe], capture_output=True, text=True, env=env, cwd=cwd,
+                                     check=True).stdout)
+
+
+def _assert_builtins(found: dict) -> None:
     assert found["broken"] == [] and "film_scanner" in found["instruments"]
     assert {"detect_markers", "lab_survey", "retarget", "four_bar", "track"} <= set(found["algorithms"])
     assert len(found["plugins"]) == 1 + len(_plugin_modules())
+
+
+@pytest.fixture
+def clone(tmp_path: Path) -> Path:
+    """A clone-like folder named ``mirrorlab`` (what ``git clone`` makes), inside ``tmp_path/work``."""
+    where = tmp_path / "work" / "mirrorlab"
+    for name in ("pyproject.toml", "README.md"):
+        where.mkdir(parents=True, exist_ok=True)
+        shutil.copy(REPO / name, where / name)
+    for folder in TOP_FOLDERS:
+        shutil.copytree(REPO / folder, where / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    return where
+
+
+def test_fresh_non_editable_install_finds_the_builtins(wheel: Path, tmp_path: Path) -> None:
+    """A venv with the wheel installed (not the editable checkout) discovers every built-in plugin from it."""
+    python, purelib = _venv(tmp_path / "venv", str(wheel))
+    found = _probe(python, cwd=tmp_path)
+    assert found["where"] == [str(purelib / "mirrorlab" / "plugins")], found["where"]
+    _assert_builtins(found)
+
+
+def test_python_beside_a_clone_imports_the_installed_package(wheel: Path, clone: Path, tmp_path: Path) -> None:
+    """``python`` started in the folder holding a clone named mirrorlab (the README's layout, ``shared/`` beside
+    the clone) imports the install: a namespace ``mirrorlab`` would be assembled from the clone first."""
+    python, purelib = _venv(tmp_path / "venv", str(wheel))
+    found = _probe(python, cwd=clone.parent)
+    assert (found["init"], found["core"]) == (str(purelib / "mirrorlab" / "__init__.py"),
+                                               str(purelib / "mirrorlab" / "core" / "__init__.py")), found
+    _assert_builtins(found)
+
+
+def test_editable_install_of_a_clone(clone: Path, tmp_path: Path) -> None:
+    """``pip install -e`` of a clone: ``mirrorlab`` is the regular package mapped from core/_mirrorlab, and the
+    code is the clone's, from any folder."""
+    python, _ = _venv(tmp_path / "venv", "-e", str(clone))
+    installed = (str(clone / "core" / "_mirrorlab" / "__init__.py"), str(clone / "core" / "__init__.py"))
+    found = _probe(python, cwd=tmp_path)
+    assert (found["init"], found["core"]) == installed, found
+    _assert_builtins(found)
+    # Beside the clone, the current folder comes before setuptools' editable import hook (a limitation setuptools
+    # documents): mirrorlab is then a namespace of the clone's folder, which holds the same code.
+    assert _probe(python, cwd=clone.parent)["core"] == installed[1]
