@@ -30,6 +30,12 @@ def require_shared_data() -> Path:
     pytest.skip(reason)
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests marked ``slow`` first: pytest-xdist hands out tests in this order, so the longest start
+    while the many short ones fill the other workers, instead of one long test ending the run alone."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 def pytest_runtest_setup(item: pytest.Item) -> None:
     if item.get_closest_marker("data") is not None:
         require_shared_data()

@@ -309,6 +309,7 @@ def test_shown_output_wildcards(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("doc", [pytest.param(d, marks=pytest.mark.data) if "shared/data" in d.read_text() else d
                                  for d in DOCS], ids=lambda p: p.name)
+@pytest.mark.slow
 def test_document_runs_as_written(doc: Path, lab: Lab) -> None:
     runs = run_document(doc, lab)
     untracked = untracked_outputs(doc, lab)

@@ -8,7 +8,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.support import REPO
+
+pytestmark = pytest.mark.slow
 
 
 def _pytest(*args: str, data: Path, require: bool = False) -> subprocess.CompletedProcess[str]:

@@ -72,6 +72,7 @@ def _serial(source: Path, target: Path, overrides: list[str] = ()) -> Path:
     return run_analysis(load_recipe(ANALYSIS, overrides, analysis=True), target)
 
 
+@pytest.mark.slow
 def test_batch_equals_serial_and_reports_a_failing_input(sessions: list[Path], tmp_path: Path) -> None:
     garbage = tmp_path / "broken.h5"
     garbage.write_text("not an HDF5 file\n")

@@ -20,6 +20,7 @@ def test_a_source_that_runs_out_fails_with_advice_instead_of_hanging() -> None:
             kit.test_acquisition_survives_disconnect(sim)
 
 
+@pytest.mark.slow
 def test_acquisition_survives_many_disconnects_mid_film() -> None:
     """Each disconnect comes on a block, mid-film; a hung-up port may fail in the driver's write,
     read or flush (pyserial lets termios.error out of flush): all must end in a reconnect."""

@@ -47,6 +47,7 @@ def serve_once(server: socket.socket, reply: bytes, hang_up: bool) -> None:
             pass
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 @fuzz(40)
 @given(reply=REPLY, hang_up=st.booleans())

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import pytest
 from mirrorlab.core import Session
 from mirrorlab.core.events import Event
 from mirrorlab.core.streams import Subscription
@@ -42,6 +43,7 @@ class Outage:
     reconnected: float   # session time of the `reconnected` event, s
 
 
+@pytest.mark.slow
 def test_an_unplugged_device_loses_only_its_own_down_time(tmp_path: Path) -> None:
     path = tmp_path / "four.h5"
     outages: list[Outage] = []

@@ -62,6 +62,7 @@ def test_turntable_is_a_251_px_sinusoid_at_78_8_ms(tmp_path: Path) -> None:
     assert number(r"^run size: (\d+) px on the lit side", text) > number(r"px on the lit side, (\d+) px", text)
 
 
+@pytest.mark.slow
 def test_active_mirror_walk_and_tracking_limit(tmp_path: Path) -> None:
     text, out = run("active_mirror", tmp_path)
     in_mirror = number(r"^in mirror: ([\d.]+) % of frames$", text)

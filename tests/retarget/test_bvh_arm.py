@@ -17,7 +17,7 @@ from tests.retarget.optimum import optimum_bounds
 
 from .test_stream import ARM, BVH, CMU_MM
 
-pytestmark = pytest.mark.data  # reads ../shared/data
+pytestmark = [pytest.mark.data, pytest.mark.slow]  # reads ../shared/data
 
 
 def arm_problem() -> tuple[np.ndarray, Chain]:

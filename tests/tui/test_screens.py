@@ -304,6 +304,7 @@ async def test_camera_follows_the_live_frames_of_a_preview(tmp_path: Path) -> No
         console.close()
 
 
+@pytest.mark.slow
 async def test_demo_flow_record_then_reconstruct_then_plots(tmp_path: Path) -> None:
     """What a newcomer does: open the demo recipe, record, stop, run the demo's analysis recipe
     (a 3-D reconstruction) from the analysis screen, and look at its trajectories."""
