@@ -41,8 +41,8 @@ def arm_positions(q: ArrayLike) -> NDArray[np.float64]:
 
     Examples
     --------
-    >>> arm_positions([[0.0, 0.0, np.pi / 2, 0.0]]).round(9).tolist()[0]
-    [[0.0, 0.0, 0.0], [300.0, 0.0, 0.0], [300.0, 0.0, -250.0], [300.0, 0.0, -330.0]]
+    >>> arm_positions([[0.0, np.pi / 2, -np.pi / 2, 0.0]]).round(9).tolist()[0]   # upper arm down, forearm forward
+    [[0.0, 0.0, 0.0], [0.0, 0.0, -300.0], [250.0, 0.0, -300.0], [330.0, 0.0, -300.0]]
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     yaw, pitch = q[:, :1], np.cumsum(q[:, 1:], axis=1)

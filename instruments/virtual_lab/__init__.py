@@ -6,6 +6,10 @@ photogrammetry plugin they validate), an OpenCV renderer (:mod:`.render`) and th
 per-frame ground truth (:mod:`.truth`), tied together by :class:`VirtualLab` (:mod:`.lab`). The
 lab is a direct frame source (:meth:`VirtualLab.frames`) and the film of the FSCAN simulator
 (:meth:`VirtualLab.film`). Units: mm, s, rad, px.
+
+The package is also what the other simulators share, importing only the core: the tracking
+world (:mod:`.world`, :mod:`.worlds`), the line-sensor detector (:mod:`.line_sensor`) and the
+trackers' experiment and figure helpers (:mod:`.experiments`, :mod:`.figures`).
 """
 
 from .lab import SCENE_NAMES, Outlines, VirtualLab, make_lab

@@ -7,6 +7,8 @@ stream lines into samples (session time, mm, NaN for a missing coordinate).
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -138,3 +140,16 @@ def test_an_unreadable_recording_is_a_configuration_error_naming_the_file(tmp_pa
     write_c3d(path, ["SHO", "ELB"], 50.0, np.zeros((3, 2, 3)))
     with pytest.raises(ConfigurationError, match="chain source simulator: .*WRI"):
         ChainSource.make_simulator({"motion": str(path), "joints": "SHO,WRI"}, seed=0)
+
+
+def test_reading_a_recording_imports_only_the_plugin_that_declares_the_hook(tmp_path: Path) -> None:
+    """``mirrorlab_read_motion`` is declared in ``mirrorlab.provides``: a fresh process imports the
+    retarget plugin (and what it uses) for it, and no other plugin."""
+    path = tmp_path / "arm.c3d"
+    write_c3d(path, ["SHO", "ELB"], 50.0, np.ones((3, 2, 3)))
+    probe = ("import sys\nfrom mirrorlab.instruments.reference.chains import simulated_chain\n"
+             f"print(simulated_chain({str(path)!r}, ['SHO', 'ELB'])[0].shape)\n"
+             "print(sorted({'.'.join(m.split('.')[:3]) for m in sys.modules if m.startswith('mirrorlab.plugins.')}))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0] == "(3, 2, 3)"
+    assert out[1] == "['mirrorlab.plugins.kinematics', 'mirrorlab.plugins.retarget']"
