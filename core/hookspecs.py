@@ -128,3 +128,33 @@ def mirrorlab_result_written(session: Session, result: ResultRef) -> None:
 @hookspec
 def mirrorlab_session_closing(session: Session, status: str) -> None:
     """The session is about to close with ``status`` (``closed`` or ``aborted``); the file is still writable."""
+
+
+# -- simulation ----------------------------------------------------------------------------------
+@hookspec(firstresult=True)
+def mirrorlab_read_motion(path: str, joints: list[str], scale: float, skip: int) -> tuple[Any, list[str], float] | None:
+    """Read the joint positions of a motion recording for a simulated motion source.
+
+    The ``chain_source`` simulator plays the recording its ``motion`` setting names; the plugins that
+    read recordings answer here, so that the instrument imports none of them. The first answer that
+    is not ``None`` is used (:meth:`~mirrorlab.core.registry.Registry.first_result`).
+
+    Parameters
+    ----------
+    path
+        The recording (a path relative to the working directory), e.g. a BVH or marker file.
+    joints
+        The joints to read, root to tip (in a marker file ``"A+B"`` is the midpoint of two markers).
+    scale
+        mm per length unit of the file.
+    skip
+        Leading frames to drop.
+
+    Returns
+    -------
+    tuple or None
+        ``(positions, names, rate)``: positions ``(frames, joints, 3)`` mm (NaN where missing), the
+        joint names and the frame rate (Hz); ``None`` when this plugin does not read such a file.
+        A plugin that reads the file's kind but cannot read this one raises a
+        :class:`~mirrorlab.core.errors.MirrorlabError` naming the file and what is wrong.
+    """

@@ -336,6 +336,12 @@ class Registry:
     def hook(self) -> Any:
         return self.pm.hook
 
+    def first_result(self, hook_name: str, **kwargs: Any) -> Any:
+        """Call a ``firstresult`` hook through pluggy, after importing the plugins that declare it:
+        the first answer that is not ``None`` (``None`` if there is none). Errors propagate."""
+        self._need("hook", hook_name)
+        return getattr(self.pm.hook, hook_name)(**kwargs)
+
     def notify(self, hook_name: str, **kwargs: Any) -> list[str]:
         """Call a lifecycle hook on every plugin; failures are returned as messages, never raised."""
         self._need("hook", hook_name)
@@ -348,9 +354,11 @@ class Registry:
         return errors
 
 
-#: The lifecycle hooks (called with :meth:`Registry.notify`), which a plugin declares as ``hook.<name>``.
+#: The hooks called by name (lifecycle ones with :meth:`Registry.notify`, ``mirrorlab_read_motion`` with
+#: :meth:`Registry.first_result`), which a plugin declares as ``hook.<name>``.
 _LIFECYCLE = ("mirrorlab_session_opened", "mirrorlab_recording_started", "mirrorlab_recording_stopped",
-              "mirrorlab_result_written", "mirrorlab_session_closing", "mirrorlab_add_cli_commands")
+              "mirrorlab_result_written", "mirrorlab_session_closing", "mirrorlab_add_cli_commands",
+              "mirrorlab_read_motion")
 
 
 def _dist(ep: md.EntryPoint) -> str:

@@ -22,10 +22,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from mirrorlab.instruments.line_tracker.experiments import fit_sinusoid, uncut
-from mirrorlab.instruments.line_tracker.sensor import PIXELS
 from mirrorlab.instruments.line_tracker.steps import CLIPPED, turntable_panels
 from mirrorlab.instruments.ultrasonic_tracker.steps import search_panel
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, traces_figure
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import PIXELS
 from mirrorlab.plugins.kinematics import figures as kin
 from mirrorlab.plugins.mechanisms import figures as mech
 from mirrorlab.plugins.mechanisms.fourbar import LINK_NAMES, reconstruct_four_bar

@@ -13,6 +13,7 @@ H_G (3.48). The noise: 0.003 mm on the 16 mm film (Table 3.1's film perturbation
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -20,13 +21,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from mirrorlab.instruments.virtual_lab.box_flight import (  # noqa: E402
-    THESIS_FILM_SIGMA_MM,
-    BoxFlight,
-    simulate_box_flight,
-    thesis_box_lab,
-)
+from mirrorlab.instruments.virtual_lab.box_flight import THESIS_FILM_SIGMA_MM, thesis_box_lab  # noqa: E402
 from scipy.stats import spearmanr  # noqa: E402
+
+# the measurement chain joins the virtual lab and the plugins it validates: it lives with its tests
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from tests.kinematics_experiments.box_flight import BoxFlight, simulate_box_flight  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "out"
 PX_PER_MM = 100.0

@@ -27,13 +27,14 @@ from mirrorlab.core import (
     StreamSpec,
 )
 from mirrorlab.core.devices import Emit, Identity, Reporter, SerialInstrument, Status
+from mirrorlab.core.devices.wire import parse_data_line
 from mirrorlab.instruments.virtual_lab import SCENE_NAMES
 
 from .film import PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEP_UM, STEPS_PER_LINE
 from .model import HEAD_LIMIT_LINES, MAX_LINES, FilmScannerModel
 from .sources import CameraSource, FolderSource, FrameSource, VideoSource, load_images, to_scan_frame
-from .wire import PIXELS, parse_data_line
+from .wire import PIXELS
 
 SCAN_CHUNK = 43                  # lines per SCAN command: 344 = 8 x 43, stop is checked between
 FEED_S_PER_LINE = STEPS_PER_LINE * STEP_S
@@ -285,7 +286,7 @@ class FilmScanner(SerialInstrument):
 
     def _data_line(self, line: str, tag: str) -> tuple[int, np.ndarray]:
         try:
-            return parse_data_line(line, tag)
+            return parse_data_line(line, tag, PIXELS)
         except ProtocolError as exc:
             raise ProtocolError(f"{self.device_name}: {exc}; check the cable and the baud rate") from None
 

@@ -17,11 +17,11 @@ from collections.abc import Iterator
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, Delay, LineSimulator
+from mirrorlab.core.devices.wire import encode_bits
 
 from .film import PITCH_MM, PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEPS_PER_LINE, Carrier, FeedFaults, LimitHit
 from .optics import Optics, blurred_transmittance, video_counts
-from .wire import encode_bits
 
 Lines = Iterator["str | Delay"]
 

@@ -1,9 +1,8 @@
 """The optical line-sensor direction detector of ``instruments.md`` §3 (``OLDT``).
 
-``LineTracker`` is the plugin (driver), ``LineTrackerModel`` its simulator. Pure functions:
-:mod:`.sensor` (pixel geometry, summing projection, video signal, runs, adaptive threshold) and
-:mod:`.view` (what a detector sees of a tracking world, the optical faults); :mod:`.detector` is the
-OLDT command set of one detector, used here and once per axis by the mirror gimbal.
+``LineTracker`` is the plugin (driver), ``LineTrackerModel`` its simulator. The sensor, the OLDT
+command set of one detector and what it sees of a tracking world are shared with the mirror gimbal
+(one detector per axis): :mod:`mirrorlab.instruments.virtual_lab.line_sensor`.
 """
 
 from .driver import LineTracker

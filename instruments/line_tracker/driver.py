@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
 from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import CENTRE_PX, FOCAL_MM, MAX_CLOCK_HZ, MIN_CLOCK_HZ, PITCH_MM, PIXELS
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import LineTrackerModel
-from .sensor import CENTRE_PX, FOCAL_MM, MAX_CLOCK_HZ, MIN_CLOCK_HZ, PITCH_MM, PIXELS
 
 
 def parse_mark(line: str, tag: str = "M") -> tuple[float, np.ndarray]:

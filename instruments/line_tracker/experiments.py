@@ -9,9 +9,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import PIXELS
 from numpy.typing import ArrayLike
-
-from .sensor import PIXELS
 
 
 @dataclass(frozen=True)

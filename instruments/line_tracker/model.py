@@ -17,6 +17,10 @@ from collections.abc import Iterator
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
+from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
+from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
+from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, SIGNAL_GAIN, detector_projection, optical_faults
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
@@ -25,11 +29,6 @@ from mirrorlab.instruments.virtual_lab.world import (
     axis_angles,
     turntable_world,
 )
-
-from .detector import OpticalDetector
-from .scanned_lines import ScannedLines
-from .sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
-from .view import OPTICAL_FAULTS, SIGNAL_GAIN, detector_projection, optical_faults
 
 Lines = Iterator[str]
 BLUR_PX = 1.5                    # deliberate defocus (§3.2), px

@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mirrorlab.core import Parameter, ParameterSet, Step
-from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
+from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 
 from .experiments import SinusoidFit, fit_sinusoid, uncut
-from .sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
 
 if TYPE_CHECKING:
     from mirrorlab.core import Session

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from mirrorlab.core import DeviceReplyError, Parameter, ParameterSet, ProtocolError, StreamSpec
 from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
-from mirrorlab.instruments.line_tracker.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, shared_world
 
 from .model import MirrorGimbalModel

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mirrorlab.instruments.virtual_lab.experiments import bisect_limit
 from numpy.typing import ArrayLike
 
 from .dynamics import AxisParams
@@ -52,15 +53,7 @@ def tracking_limit(params: AxisParams | None = None, seed: int = 0, lo: float = 
 
     Assumes tracking holds at ``lo`` and fails at ``hi``; raises ``ValueError`` otherwise.
     """
-    if loses_target(lo, params, seed, faults=faults) or not loses_target(hi, params, seed, faults=faults):
-        raise ValueError(f"tracking limit not within {math.degrees(lo):g}..{math.degrees(hi):g} deg/s")
-    while hi - lo > tol:
-        mid = (lo + hi) / 2
-        if loses_target(mid, params, seed, faults=faults):
-            hi = mid
-        else:
-            lo = mid
-    return (lo + hi) / 2
+    return bisect_limit(lambda rate: loses_target(rate, params, seed, faults=faults), lo, hi, tol)
 
 
 def fixed_mirror_width(camera: ArrayLike, centre: ArrayLike, points: ArrayLike, radius: float = 0.0) -> float:

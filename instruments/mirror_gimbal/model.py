@@ -18,10 +18,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
-from mirrorlab.instruments.line_tracker.detector import OpticalDetector
-from mirrorlab.instruments.line_tracker.scanned_lines import ScannedLines
-from mirrorlab.instruments.line_tracker.sensor import video_signal
-from mirrorlab.instruments.line_tracker.view import (
+from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
+from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import video_signal
+from mirrorlab.instruments.virtual_lab.line_sensor.view import (
     OPTICAL_FAULTS,
     SIGNAL_GAIN,
     detector_projection,

@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, schema
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
 from mirrorlab.instruments.virtual_lab.world import image_in_mirror, mirror_normal
+from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 
 from .experiments import fixed_mirror_width, tracking_limit
 
@@ -29,27 +30,6 @@ VARIANTS = {"default calibrated motor": (1.0, ()), "stronger motor (TORQUE H 2)"
             "backlash removed (BACKLASH H 0)": (1.0, ("BACKLASH H 0",)),
             "stronger motor, no backlash": (2.0, ("TORQUE H 2", "BACKLASH H 0"))}
 RISE_DEG_S = 0.5                 # a variant "raises" the limit by more than twice the bisection tolerance
-
-
-def figures_folder(session: Session, given: str) -> Path:
-    """``given``, or ``<session stem>-figures`` beside the session file."""
-    return Path(given) if given else session.path.with_name(session.path.stem + "-figures")
-
-
-def latest_truth(session: Session) -> str:
-    """Path of the last ``/truth/world*`` group (one per recording) or an :class:`AlgorithmError`."""
-    groups = sorted((k for k in session.file.get("truth", {}) if k == "world" or k.startswith("world_")),
-                    key=lambda k: int(k.partition("_")[2] or 1))
-    if not groups:
-        raise AlgorithmError(f"no /truth/world in {session.path}: give the recipe a [world] and record "
-                             "(an acquire step) before this report")
-    return f"truth/{groups[-1]}"
-
-
-def truth_arrays(session: Session, root: str) -> dict[str, np.ndarray]:
-    """``time`` and every quantity's ``data`` of a ``/truth/world`` group."""
-    g = session.file[root]
-    return {"time": g["target/time"][:], **{name: g[f"{name}/data"][:] for name in g}}
 
 
 class ActiveMirrorReport(Step):

@@ -109,7 +109,7 @@ class ChainSource(_StreamingInstrument):
     The device streams the selected joints (``joints``, root to tip) once per frame; the stream
     ``joints`` holds one (joints, 3) array per frame in mm (NaN where a joint is missing) and
     ``frame`` the device's frame number. Its simulator plays a recording (``motion``: a BVH, C3D,
-    TRC or TSV file, read by :func:`mirrorlab.plugins.retarget.algorithms.read_motion`) or, without
+    TRC or TSV file, read by the plugin answering the ``mirrorlab_read_motion`` hook) or, without
     one, a generated arm (:func:`.chains.generated_arm`), looping.
     """
 

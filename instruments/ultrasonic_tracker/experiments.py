@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from mirrorlab.instruments.virtual_lab.experiments import bisect_limit
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, build_world
 
 from .model import DEFAULT_SERVO, TARGET_RADIUS, Servo, UltrasonicTrackerModel
@@ -83,15 +84,7 @@ def tracking_limit(servo: Servo | None = DEFAULT_SERVO, seed: int = 0, lo: float
                    hi: float = math.radians(60.0), tol: float = math.radians(0.25),
                    faults: tuple[str, ...] = ()) -> float:
     """Smallest circling rate (rad/s) that is lost, to within ``tol`` (bisection)."""
-    if loses_target(lo, servo, seed, faults=faults) or not loses_target(hi, servo, seed, faults=faults):
-        raise ValueError(f"tracking limit not within {math.degrees(lo):g}..{math.degrees(hi):g} deg/s")
-    while hi - lo > tol:
-        mid = (lo + hi) / 2
-        if loses_target(mid, servo, seed, faults=faults):
-            hi = mid
-        else:
-            lo = mid
-    return (lo + hi) / 2
+    return bisect_limit(lambda rate: loses_target(rate, servo, seed, faults=faults), lo, hi, tol)
 
 
 def cycle_times(range_mm: float = 1300.0, cycles: int = 50, seed: int = 0) -> np.ndarray:

@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mirrorlab.core import Parameter, ParameterSet, Step
-from mirrorlab.instruments.mirror_gimbal.steps import figures_folder, latest_truth, truth_arrays
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
+from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 
 from .experiments import stage_tracking
 

@@ -10,10 +10,9 @@ from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
-from mirrorlab.plugins.photogrammetry import PinholeCamera
 from numpy.typing import ArrayLike, NDArray
 
-from .optics import Mirror, calibration_grid, look_at_camera
+from .optics import LabCamera, Mirror, calibration_grid, look_at_camera
 from .render import Renderer, RenderSettings, outline_circles
 from .scenes import BoxScene, FourBarScene, GridScene, Placement, RSSRScene, Scene, UpperLimbScene
 from .truth import LabTruth, compute_truth
@@ -47,7 +46,7 @@ class VirtualLab:
     """
 
     scene: Scene
-    camera: PinholeCamera
+    camera: LabCamera
     mirrors: tuple[Mirror, ...] = ()
     settings: RenderSettings = field(default_factory=RenderSettings)
 
@@ -76,7 +75,7 @@ class VirtualLab:
         pts, levels, views, markers = [], [], [], []
         viewpoints = [(-1, C, truth.real_visible[k], None)]
         for j, m in enumerate(self.mirrors):
-            viewpoints.append((j, m.virtual_camera(C).center, truth.virtual_visible[k, j], m))
+            viewpoints.append((j, m.virtual_centre(C), truth.virtual_visible[k, j], m))
         for view, eye, visible, mirror in viewpoints:
             idx = np.flatnonzero(visible)
             if idx.size == 0:

@@ -1,8 +1,13 @@
 """Camera, finite plane mirrors and the calibration grid of the virtual lab.
 
-* :func:`look_at_camera` builds a :class:`~mirrorlab.plugins.photogrammetry.PinholeCamera` (OpenCV
-  projection with radial distortion) from a position, a target, a focal length and a sensor size,
-  in mm. The camera axes follow OpenCV: x right, y down, z along the optical axis.
+The lab's optics are its own (a pinhole with OpenCV's distortion model, reflection in a plane),
+written out here rather than taken from the photogrammetry plugin: the truth computed with them
+validates that plugin, so a bug shared by both would cancel out (``tests/virtual_lab`` cross-checks
+the two).
+
+* :func:`look_at_camera` builds a :class:`LabCamera` (pinhole projection with OpenCV's radial and
+  tangential distortion) from a position, a target, a focal length and a sensor size, in mm. The
+  camera axes follow OpenCV: x right, y down, z along the optical axis.
 * :class:`Mirror` is a finite rectangular plane mirror. A marker is seen in it only when the ray
   from the camera to the marker's virtual image (its reflection) crosses the rectangle.
 * :func:`view_points` gives the image position and visibility of points seen directly and in each
@@ -16,10 +21,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from mirrorlab.plugins.photogrammetry import PinholeCamera, VirtualCamera, reflect, virtual_camera
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["Mirror", "Views", "calibration_grid", "camera_frame", "look_at_camera", "thesis_grid_points",
+__all__ = ["LabCamera", "Mirror", "Views", "calibration_grid", "camera_frame", "look_at_camera", "thesis_grid_points",
            "view_points", "THESIS_GRID_X", "THESIS_GRID_Y"]
 
 FloatArray = NDArray[np.float64]
@@ -35,11 +39,74 @@ def _unit(v: ArrayLike) -> FloatArray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+#: Distortion coefficients the lab's camera models: OpenCV's ``(k1, k2, p1, p2, k3)``.
+DISTORTION_TERMS = 5
+
+
+@dataclass(frozen=True)
+class LabCamera:
+    """A pinhole camera with OpenCV's lens distortion (``k1, k2, p1, p2, k3``), mm and px.
+
+    The same model and conventions as OpenCV's ``projectPoints`` (and the photogrammetry plugin's
+    ``PinholeCamera``): ``x = R X + t``, normalised ``(x/z, y/z)``, radial factor
+    ``1 + k1 r² + k2 r⁴ + k3 r⁶`` and tangential terms, then ``u = fx x'' + cx``, ``v = fy y'' + cy``
+    (no skew), pixel centres at integer coordinates.
+
+    Attributes
+    ----------
+    K : (3, 3) intrinsic matrix, px.
+    dist : (5,) distortion coefficients ``(k1, k2, p1, p2, k3)`` (fewer are padded with zeros).
+    R : (3, 3) world -> camera rotation.
+    t : (3,) world -> camera translation, mm.
+    image_size : (width, height) px, or ``None``.
+
+    Examples
+    --------
+    >>> cam = LabCamera(np.array([[1000., 0, 320], [0, 1000., 240], [0, 0, 1]]), np.zeros(5), np.eye(3), np.zeros(3))
+    >>> cam.project([[0.0, 0.0, 1000.0], [100.0, 0.0, 1000.0]]).tolist()
+    [[320.0, 240.0], [420.0, 240.0]]
+    """
+
+    K: FloatArray
+    dist: FloatArray
+    R: FloatArray
+    t: FloatArray
+    image_size: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        dist = np.asarray(self.dist, dtype=float).ravel()
+        if dist.size > DISTORTION_TERMS:
+            raise ValueError(f"the virtual lab's camera models {DISTORTION_TERMS} distortion coefficients "
+                             f"(k1, k2, p1, p2, k3), got {dist.size}")
+        object.__setattr__(self, "K", np.asarray(self.K, dtype=float).reshape(3, 3))
+        object.__setattr__(self, "dist", np.pad(dist, (0, DISTORTION_TERMS - dist.size)))
+        object.__setattr__(self, "R", np.asarray(self.R, dtype=float).reshape(3, 3))
+        object.__setattr__(self, "t", np.asarray(self.t, dtype=float).reshape(3))
+
+    @property
+    def camera_center(self) -> FloatArray:
+        """Projection centre ``-Rᵀ t`` in world coordinates, mm."""
+        return -self.R.T @ self.t
+
+    def project(self, points: ArrayLike) -> FloatArray:
+        """Pixel coordinates (N, 2) of world points (N, 3), mm (NaN for a point in the camera's plane z = 0)."""
+        P = np.asarray(points, dtype=float).reshape(-1, 3)
+        Pc = P @ self.R.T + self.t
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x, y = Pc[:, 0] / Pc[:, 2], Pc[:, 1] / Pc[:, 2]
+        k1, k2, p1, p2, k3 = self.dist
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+        yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+        return np.stack([self.K[0, 0] * xd + self.K[0, 2], self.K[1, 1] * yd + self.K[1, 2]], axis=-1)
+
+
 def look_at_camera(position: ArrayLike, target: ArrayLike, focal_mm: float,
                    sensor_mm: tuple[float, float] = (36.0, 24.0), image_size: tuple[int, int] = (1800, 1200),
                    up: ArrayLike = (0.0, 1.0, 0.0), roll: float = 0.0,
                    distortion: Sequence[float] = (0.0, 0.0, 0.0, 0.0, 0.0),
-                   principal_offset_px: tuple[float, float] = (0.0, 0.0)) -> PinholeCamera:
+                   principal_offset_px: tuple[float, float] = (0.0, 0.0)) -> LabCamera:
     """A pinhole camera at ``position`` looking at ``target`` (any tilt), mm.
 
     Parameters
@@ -63,7 +130,7 @@ def look_at_camera(position: ArrayLike, target: ArrayLike, focal_mm: float,
 
     Returns
     -------
-    PinholeCamera
+    LabCamera
 
     Examples
     --------
@@ -79,7 +146,7 @@ def look_at_camera(position: ArrayLike, target: ArrayLike, focal_mm: float,
     K = np.array([[fx, 0.0, (w - 1) / 2 + principal_offset_px[0]],
                   [0.0, fy, (h - 1) / 2 + principal_offset_px[1]],
                   [0.0, 0.0, 1.0]])
-    return PinholeCamera(K, np.asarray(distortion, dtype=float), R, -R @ C, (w, h))
+    return LabCamera(K, np.asarray(distortion, dtype=float), R, -R @ C, (w, h))
 
 
 def camera_frame(position: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0),
@@ -145,12 +212,24 @@ class Mirror:
         return self.centre + 0.5 * (s[:, :1] * self.width * u + s[:, 1:] * self.height * v)
 
     def reflect(self, points: ArrayLike) -> FloatArray:
-        """Mirror images ``(..., 3)`` of points (the virtual markers), mm."""
-        return reflect(points, self.centre, self.normal)
+        """Mirror images ``(..., 3)`` of points (the virtual markers): ``x - 2 ((x - G) . n) n``, mm."""
+        x = np.asarray(points, dtype=float)
+        return x - 2.0 * ((x - self.centre) @ self.normal)[..., None] * self.normal
 
-    def virtual_camera(self, camera_centre: ArrayLike) -> VirtualCamera:
-        """The camera's mirror image (``F2``, ``M``) of ``photogrammetry.md`` §7."""
-        return virtual_camera(camera_centre, self.centre, self.normal)
+    def virtual_centre(self, camera_centre: ArrayLike) -> FloatArray:
+        """The camera's mirror image ``F2`` (``photogrammetry.md`` §7): its centre reflected, mm.
+
+        Raises
+        ------
+        ValueError
+            The camera is not in front of the mirror's reflecting side.
+        """
+        C = np.asarray(camera_centre, dtype=float).reshape(3)
+        if not self.side(C) > 0:
+            raise ValueError(f"the camera at {C.round(3).tolist()} mm is not in front of the mirror at "
+                             f"{self.centre.round(3).tolist()} mm (normal {self.normal.round(6).tolist()}): "
+                             "turn the normal toward the camera")
+        return self.reflect(C)
 
     def side(self, points: ArrayLike) -> FloatArray:
         """Signed distance ``(points - G) . n`` (mm); > 0 on the reflecting side."""
@@ -189,7 +268,7 @@ class Views:
     virtual_points: FloatArray
 
 
-def _in_view(camera: PinholeCamera, points: FloatArray) -> tuple[FloatArray, BoolArray]:
+def _in_view(camera: LabCamera, points: FloatArray) -> tuple[FloatArray, BoolArray]:
     """Pixel positions (..., 2) and 'in front and inside the frame' (...,) of points (..., 3)."""
     shape = points.shape[:-1]
     P = points.reshape(-1, 3)
@@ -212,7 +291,7 @@ def facing(normals: FloatArray, points: FloatArray, viewpoint: ArrayLike) -> Boo
     return np.isnan(d) | (d > 0)
 
 
-def view_points(camera: PinholeCamera, mirrors: Sequence[Mirror], points: ArrayLike,
+def view_points(camera: LabCamera, mirrors: Sequence[Mirror], points: ArrayLike,
                 normals: ArrayLike | None = None, hidden_real: ArrayLike | None = None,
                 hidden_virtual: ArrayLike | None = None) -> Views:
     """Where points appear in the image, directly and in each finite mirror.
@@ -224,7 +303,7 @@ def view_points(camera: PinholeCamera, mirrors: Sequence[Mirror], points: ArrayL
 
     Parameters
     ----------
-    camera : PinholeCamera
+    camera : LabCamera
     mirrors : sequence of Mirror
     points : (T, M, 3) mm
     normals : (T, M, 3), optional
@@ -252,7 +331,7 @@ def view_points(camera: PinholeCamera, mirrors: Sequence[Mirror], points: ArrayL
     vpts = np.full((T, K, M, 3), np.nan)
     for k, m in enumerate(mirrors):
         V = m.reflect(P)
-        F2 = m.virtual_camera(C).center
+        F2 = m.virtual_centre(C)
         pxy, ok = _in_view(camera, V)
         ok &= (m.side(P) > 0) & facing(N, P, F2) & m.crosses(np.broadcast_to(C, V.shape), V)
         for j, other in enumerate(mirrors):       # another mirror's back in the way of the reflected ray

@@ -8,16 +8,18 @@ Scenes (specs in ``../shared/spec``):
 
 * :class:`RSSRScene`: the RSSR spatial four-bar of ``kinematics.md`` §6 (spherical-joint markers
   ``S_A`` on the input crank and ``S_C`` on the output crank, 0.58 rad/s), positions from
-  :func:`mirrorlab.plugins.kinematics.rssr_state`.
+  :func:`~.motion.rssr_motion`.
 * :class:`FourBarScene`: the planar four-bar of ``analysis.md`` §4 (230/100/220/133 mm, 20 mm white
   discs: two per moving link, three on the frame).
 * :class:`BoxScene`: the 200 x 200 x 300 mm box in free flight (torque-free tumbling from
-  :func:`mirrorlab.plugins.kinematics.synthetic.torque_free_rotation`, ballistic centre), one
-  spherical marker at each vertex, hidden by the box itself when no incident face looks at the viewer.
+  :func:`~.motion.torque_free_rotation`, ballistic centre), one spherical marker at each vertex,
+  hidden by the box itself when no incident face looks at the viewer.
 * :class:`UpperLimbScene`: an arm model with markers P0-P5 lifting a 700 mm bar (``analysis.md`` §8);
   P6 = (P4 + P5) / 2 is given in the analytic quantities.
 * :class:`GridScene`: static discs on the calibration plane Z = 0 (see
   :func:`~mirrorlab.instruments.virtual_lab.optics.calibration_grid`).
+
+The motions are the lab's own (:mod:`.motion`), independent of the kinematics plugin they validate.
 """
 
 from __future__ import annotations
@@ -26,9 +28,18 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
-from mirrorlab.plugins.kinematics.rssr import THESIS_RSSR, THESIS_THETA_DOT, RSSRParams, rotate, rssr_state
-from mirrorlab.plugins.kinematics.synthetic import box_inertia, box_vertices, torque_free_rotation
 from numpy.typing import ArrayLike, NDArray
+
+from .motion import (
+    THESIS_RSSR,
+    THESIS_THETA_DOT,
+    RSSRGeometry,
+    box_inertia,
+    box_vertices,
+    rotate,
+    rssr_motion,
+    torque_free_rotation,
+)
 
 __all__ = ["BoxScene", "FourBarScene", "GridScene", "Placement", "RSSRScene", "Scene", "SceneState",
            "UpperLimbScene", "GRAVITY_MM_S2"]
@@ -133,7 +144,7 @@ class RSSRScene(Scene):
 
     Markers are the spherical joints ``S_A`` (input crank) and ``S_C`` (output crank), as in the
     thesis experiment; they are balls of radius ``marker_radius``. Positions are exactly
-    ``placement.apply(rssr_state(theta0 + theta_dot * t).S_A / S_C)``.
+    ``placement.apply(rssr_motion(theta0 + theta_dot * t).S_A / S_C)``.
 
     Analytic quantities: ``theta``, ``theta_dot``, ``theta_ddot`` (rad, rad/s, rad/s²), ``phi``,
     ``phi_dot``, ``phi_ddot`` (signed output angle and its derivatives), ``S_A``, ``S_C`` in the
@@ -146,7 +157,7 @@ class RSSRScene(Scene):
     ([-169.63, -120.373, -79.398], 0.227955)
     """
 
-    params: RSSRParams = THESIS_RSSR
+    params: RSSRGeometry = THESIS_RSSR
     theta_dot: float = THESIS_THETA_DOT
     theta0: float = 0.0
     marker_radius: float = 10.0
@@ -161,7 +172,7 @@ class RSSRScene(Scene):
     def state(self, t: ArrayLike) -> SceneState:
         tt = _times(t)
         theta = self.theta0 + self.theta_dot * tt
-        s = rssr_state(theta, self.theta_dot, 0.0, self.params)
+        s = rssr_motion(theta, self.theta_dot, 0.0, self.params)
         mech = np.stack([s.S_A, s.S_C], axis=1)
         analytic = {"theta": theta, "theta_dot": np.full_like(tt, self.theta_dot), "theta_ddot": np.zeros_like(tt),
                     "phi": s.phi, "phi_dot": s.phi_dot, "phi_ddot": s.phi_ddot, "S_A": s.S_A, "S_C": s.S_C}
@@ -308,8 +319,7 @@ class BoxScene(Scene):
             R = np.eye(3)[None]
             wb = np.asarray(self.omega0_body, float)[None]
         else:
-            body = torque_free_rotation(inertia, self.omega0_body, grid)
-            R, wb = body.R, body.omega_body
+            R, wb = torque_free_rotation(inertia, self.omega0_body, grid)
         sel = inverse[1:]
         R, wb = R[sel], wb[sel]
         ww = np.einsum("tij,tj->ti", R, wb)

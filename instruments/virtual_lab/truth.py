@@ -10,10 +10,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from mirrorlab.plugins.photogrammetry import PinholeCamera
 from numpy.typing import ArrayLike, NDArray
 
-from .optics import Mirror, Views, view_points
+from .optics import LabCamera, Mirror, Views, view_points
 from .scenes import Scene, SceneState
 
 __all__ = ["LabTruth", "compute_truth", "write_truth"]
@@ -67,7 +66,7 @@ class LabTruth:
         return xy, np.arange(-1, self.virtual_xy.shape[1], dtype=np.int64)
 
 
-def compute_truth(scene: Scene, camera: PinholeCamera, mirrors: Sequence[Mirror], times: ArrayLike,
+def compute_truth(scene: Scene, camera: LabCamera, mirrors: Sequence[Mirror], times: ArrayLike,
                   state: SceneState | None = None) -> LabTruth:
     """Ground truth of ``scene`` seen by ``camera`` directly and in ``mirrors`` at ``times`` (s).
 
@@ -82,7 +81,7 @@ def compute_truth(scene: Scene, camera: PinholeCamera, mirrors: Sequence[Mirror]
     st = scene.state(times) if state is None else state
     C = camera.camera_center
     hidden_real = scene.occluded(st, C)
-    hidden_virtual = np.stack([scene.occluded(st, m.virtual_camera(C).center) for m in mirrors], axis=1) \
+    hidden_virtual = np.stack([scene.occluded(st, m.virtual_centre(C)) for m in mirrors], axis=1) \
         if mirrors else None
     v: Views = view_points(camera, mirrors, st.positions, st.normals, hidden_real, hidden_virtual)
     seen = v.virtual_visible
@@ -93,7 +92,7 @@ def compute_truth(scene: Scene, camera: PinholeCamera, mirrors: Sequence[Mirror]
                     mirror_id, dict(st.analytic))
 
 
-def write_truth(session: Any, name: str, truth: LabTruth, camera: PinholeCamera | None = None,
+def write_truth(session: Any, name: str, truth: LabTruth, camera: LabCamera | None = None,
                 mirrors: Sequence[Mirror] = (), attrs: dict[str, Any] | None = None,
                 frame_index: ArrayLike | None = None) -> str:
     """Write ``truth`` to ``session`` under ``/truth/<name>/`` (never among the measurements).
@@ -130,6 +129,6 @@ def write_truth(session: Any, name: str, truth: LabTruth, camera: PinholeCamera 
         session.write_group(f"{root}/mirrors", {
             "centre": np.array([m.centre for m in mirrors]), "normal": np.array([m.normal for m in mirrors]),
             "size": np.array([[m.width, m.height] for m in mirrors]),
-            "virtual_centre": np.array([m.virtual_camera(camera.camera_center).center for m in mirrors])
+            "virtual_centre": np.array([m.virtual_centre(camera.camera_center) for m in mirrors])
             if camera is not None else np.zeros((len(mirrors), 3))})
     return "/" + root

@@ -19,11 +19,12 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet
 
 from .world import Path, SharedWorld, Sphere, TrackingWorld, mirror_normal, turntable_world
 
-__all__ = ["SCENES", "TRACKING_WORLD", "TRUTH_STREAMS", "build_world", "record_world_truth", "shared_world"]
+__all__ = ["SCENES", "TRACKING_WORLD", "TRUTH_STREAMS", "build_world", "latest_truth", "record_world_truth", "shared_world",
+           "truth_arrays"]
 
 #: The preset scenes of ``[world] scene``.
 SCENES = ("still", "walk", "stage_line", "stage_ellipse", "turntable")
@@ -162,3 +163,19 @@ def record_world_truth(session: Any) -> str | None:
         session.write_group(f"{root}/{name}", {"time": times, "data": truth[names[name]]},
                             {"unit": unit, "time_unit": "s", "description": description})
     return "/" + root
+
+
+def latest_truth(session: Any) -> str:
+    """Path of the last ``/truth/world*`` group (one per recording) or an :class:`AlgorithmError`."""
+    groups = sorted((k for k in session.file.get("truth", {}) if k == "world" or k.startswith("world_")),
+                    key=lambda k: int(k.partition("_")[2] or 1))
+    if not groups:
+        raise AlgorithmError(f"no /truth/world in {session.path}: give the recipe a [world] and record "
+                             "(an acquire step) before this report")
+    return f"truth/{groups[-1]}"
+
+
+def truth_arrays(session: Any, root: str) -> dict[str, np.ndarray]:
+    """``time`` and every quantity's ``data`` of a ``/truth/world`` group."""
+    g = session.file[root]
+    return {"time": g["target/time"][:], **{name: g[f"{name}/data"][:] for name in g}}

@@ -408,9 +408,8 @@ def reconstruct_four_bar(points: ArrayLike, method: Method = "least_squares", *,
 
     Examples
     --------
-    >>> from mirrorlab.instruments.virtual_lab.scenes import FourBarScene
-    >>> scene = FourBarScene()
-    >>> p = scene.positions(np.arange(30) * np.deg2rad(12) / scene.omega)[..., :2]
+    >>> from mirrorlab.plugins.mechanisms.synthetic import four_bar_positions
+    >>> p = four_bar_positions(np.arange(30) * np.deg2rad(12))
     >>> rng = np.random.default_rng(0)
     >>> shuffled = np.stack([f[rng.permutation(len(f))] for f in p])
     >>> fb = reconstruct_four_bar(shuffled)

@@ -1,8 +1,9 @@
 """Synthetic marker data of the thesis's four-bar experiment (``analysis.md`` §4.3-§4.4).
 
-The virtual lab's :class:`~mirrorlab.instruments.virtual_lab.scenes.FourBarScene` (230/100/220/133
-mm, two markers per moving link, three on the frame) sampled at 12° crank steps, with the thesis
-digitiser's errors, markers shuffled in every frame and optional gaps. Units: mm.
+The thesis four-bar (230/100/220/133 mm, two markers per moving link, three on the frame; the
+marker layout of the virtual lab's four-bar scene) sampled at 12° crank steps
+(:func:`four_bar_positions`), with the thesis digitiser's errors, markers shuffled in every frame
+and optional gaps. Units: mm, rad.
 """
 
 from __future__ import annotations
@@ -10,10 +11,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from mirrorlab.instruments.virtual_lab.scenes import FourBarScene
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["FOUR_BAR_FIELD_MM", "TABLE_5_1", "THESIS_FOUR_BAR", "four_bar_markers"]
+__all__ = ["FOUR_BAR_FIELD_MM", "FOUR_BAR_MARKERS", "TABLE_5_1", "THESIS_FOUR_BAR", "four_bar_markers",
+           "four_bar_positions"]
 
 #: Field of the virtual lab's four-bar camera on the mechanism plane, mm: a 24 x 18 mm cine frame
 #: through a 50 mm lens from 1200 mm (``make_lab("four_bar")``).
@@ -22,6 +23,54 @@ FOUR_BAR_FIELD_MM = (24.0 * 1200.0 / 50.0, 18.0 * 1200.0 / 50.0)
 THESIS_FOUR_BAR = {"ground": 230.0, "input": 100.0, "coupler": 220.0, "output": 133.0}
 #: Table 5.1: the thesis's reconstructed lengths (image units x 2.000, mm) and errors (%).
 TABLE_5_1 = {"ground": (217.10, -5.6), "input": (108.40, 8.4), "coupler": (234.06, 6.4), "output": (121.28, -8.8)}
+#: Marker offsets (mm) in each link's frame: x along the link from its first joint, y to its left.
+#: Markers F1-F3 on the frame, L1a, L1b on the input crank, L3a, L3b on the coupler, L4a, L4b on the output.
+FOUR_BAR_MARKERS: dict[str, tuple[tuple[float, float], ...]] = {
+    "frame": ((-70.0, -110.0), (110.0, -150.0), (310.0, -140.0)),
+    "input": ((35.0, 12.0), (80.0, -10.0)),
+    "coupler": ((95.0, 35.0), (165.0, -20.0)),
+    "output": ((45.0, 10.0), (100.0, -12.0)),
+}
+
+
+def four_bar_positions(theta: ArrayLike, lengths: dict[str, float] = THESIS_FOUR_BAR) -> NDArray[np.float64]:
+    """Marker positions (T, 9, 2) mm of a planar four-bar at input crank angles ``theta`` (T,) rad.
+
+    Ground pivots G1 = (0, 0) and G2 = (ground, 0); the crank G1-J1 at ``theta``; the output link
+    G2-J2 at the angle that closes the loop (cosine law in the triangle J1 G2 J2), J2 on the left
+    of J1 -> G2. Points are complex numbers here: a marker at ``(x, y)`` in a link's frame sits at
+    ``origin + (x + i y) u``, ``u`` the link's unit direction.
+
+    Raises
+    ------
+    ValueError
+        The links cannot close at some ``theta`` (the message names it).
+
+    Examples
+    --------
+    >>> p = four_bar_positions([0.0, np.pi / 2])
+    >>> p.shape, np.linalg.norm(p[:, 4] - p[:, 3], axis=-1).round(6).tolist()   # two markers on the crank
+    ((2, 9, 2), [50.089919, 50.089919])
+    """
+    th = np.atleast_1d(np.asarray(theta, dtype=float))
+    L0, L1, L3, L4 = (float(lengths[k]) for k in ("ground", "input", "coupler", "output"))
+    G1, G2 = 0j, complex(L0, 0.0)
+    J1 = L1 * np.exp(1j * th)
+    diagonal = np.abs(J1 - G2)
+    cos_beta = (L4**2 + diagonal**2 - L3**2) / (2.0 * L4 * diagonal)     # angle J1 G2 J2
+    if np.any(np.abs(cos_beta) > 1.0):
+        k = int(np.flatnonzero(np.abs(cos_beta) > 1.0)[0])
+        raise ValueError(f"the four-bar cannot close at theta = {th[k]:.4g} rad; check the link lengths")
+    J2 = G2 + L4 * np.exp(1j * (np.angle(J1 - G2) - np.arccos(cos_beta)))
+
+    def on_link(origin: ArrayLike, tip: ArrayLike, offsets: tuple[tuple[float, float], ...]) -> NDArray[np.complex128]:
+        u = (np.asarray(tip) - origin) / np.abs(np.asarray(tip) - origin)
+        return np.asarray(origin)[..., None] + np.array([complex(x, y) for x, y in offsets]) * np.asarray(u)[..., None]
+
+    frame = np.broadcast_to(np.array([complex(x, y) for x, y in FOUR_BAR_MARKERS["frame"]]), (th.size, 3))
+    z = np.concatenate([frame, on_link(G1, J1, FOUR_BAR_MARKERS["input"]), on_link(J1, J2, FOUR_BAR_MARKERS["coupler"]),
+                        on_link(np.full(th.size, G2), J2, FOUR_BAR_MARKERS["output"])], axis=1)
+    return np.stack([z.real, z.imag], axis=-1)
 
 
 def four_bar_markers(frames: int = 30, step: float = np.deg2rad(12.0), *, noise: Literal["none", "uniform", "gaussian"]
@@ -47,7 +96,7 @@ def four_bar_markers(frames: int = 30, step: float = np.deg2rad(12.0), *, noise:
     Returns
     -------
     points : (frames, 9, 2) marker positions, mm (rows in random order when shuffled).
-    truth : (frames, 9, 2) the same markers unshuffled and noiseless, in the scene's label order.
+    truth : (frames, 9, 2) the same markers unshuffled and noiseless, in the order of :data:`FOUR_BAR_MARKERS`.
 
     Examples
     --------
@@ -55,8 +104,7 @@ def four_bar_markers(frames: int = 30, step: float = np.deg2rad(12.0), *, noise:
     >>> bool(np.array_equal(p, truth)), p.shape
     (True, (3, 9, 2))
     """
-    scene = FourBarScene(theta0=theta0)
-    truth = scene.positions(np.arange(frames) * step / scene.omega)[..., :2]
+    truth = four_bar_positions(theta0 + np.arange(frames) * step)
     rng = np.random.default_rng(seed)
     unit = np.array([field[0] / 512.0, field[1] / 344.0])
     if noise == "uniform":

@@ -1,10 +1,14 @@
 """Registration of the retarget adapters: the ``retarget`` algorithm (:mod:`.algorithms`), step
-(:mod:`.steps`) and controller (:mod:`.controllers`).
+(:mod:`.steps`) and controller (:mod:`.controllers`), and the reader of motion recordings that a
+simulated ``chain_source`` plays (``mirrorlab_read_motion``).
 
 Nothing else lives here.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
 
 from mirrorlab.core import hookimpl
 
@@ -26,3 +30,11 @@ def mirrorlab_register_steps() -> list[type]:
 @hookimpl
 def mirrorlab_register_controllers() -> list[type]:
     return [RetargetController]
+
+
+@hookimpl
+def mirrorlab_read_motion(path: str, joints: list[str], scale: float, skip: int) -> tuple[Any, list[str], float]:
+    from .algorithms import read_motion
+
+    m = read_motion(Path(path), list(joints), scale, skip)
+    return m.joints, [n.replace(" ", "_") for n in m.names], m.rate

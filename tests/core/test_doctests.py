@@ -10,7 +10,7 @@ import pytest
 MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
            "mirrorlab.core.batch.chunks", "mirrorlab.core.digests", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
            "mirrorlab.core.tui.ticks",
-           "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming"]
+           "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming", "mirrorlab.core.devices.wire"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -12,7 +12,7 @@ from mirrorlab.core.algorithms import execute
 from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.plugins.pairing import mirror_epipole
 from mirrorlab.plugins.pairing.algorithms import PairMirror
-from mirrorlab.plugins.photogrammetry import fit_plane_calibration
+from mirrorlab.plugins.photogrammetry import PinholeCamera, fit_plane_calibration
 from mirrorlab.plugins.photogrammetry.camera_arrays import plane_arrays
 from mirrorlab.plugins.pipeline import (
     EpipoleError,
@@ -149,7 +149,8 @@ def _shuffled_detections(truth, seed: int = 7) -> np.ndarray:
 def test_split_pair_track_recovers_truth_exactly(rssr_truth) -> None:
     lab, tr = rssr_truth
     det = _shuffled_detections(tr)
-    P = camera_projection(lab.camera)
+    c = lab.camera
+    P = camera_projection(PinholeCamera(c.K, c.dist, c.R, c.t, c.image_size))   # the lab's camera, as calibrated
     outline = mirror_outline(P, lab.mirrors[0].corners())
     virt, vm, vrow, view = split_views(det, [outline])
     # every true mirror image is a candidate (direct images may be too: the mechanism is in front of the mirror)

@@ -7,17 +7,32 @@ stream lines into samples (session time, mm, NaN for a missing coordinate).
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mirrorlab.core.clock import SessionClock
 from mirrorlab.core.devices import SimulatorServer
-from mirrorlab.core.errors import DeviceReplyError
+from mirrorlab.core.errors import ConfigurationError, DeviceReplyError
 from mirrorlab.core.streams import Emitter, StreamRouter
 from mirrorlab.instruments.reference import ChainSource
-from mirrorlab.instruments.reference.chains import ARM_JOINTS, generated_arm
+from mirrorlab.instruments.reference.chains import (
+    ARM_AXES,
+    ARM_JOINTS,
+    ARM_LENGTHS,
+    arm_angles,
+    arm_positions,
+    generated_arm,
+    simulated_chain,
+)
 from mirrorlab.instruments.reference.models import ChainSourceModel
+from mirrorlab.plugins.kinematics.io import write_c3d
+from mirrorlab.plugins.retarget import Chain
 
 from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
 from tests.tolerances import roundoff
@@ -90,3 +105,51 @@ def test_generated_arm_keeps_its_link_lengths() -> None:
     np.testing.assert_allclose(lengths, np.broadcast_to([300.0, 250.0, 80.0], lengths.shape), rtol=0,
                                atol=roundoff(scale=np.abs(X).max(), ops=20))
     assert X.shape == (1000, len(ARM_JOINTS), 3) and np.ptp(X[:, 3], axis=0).min() > 50  # it moves in 3-D
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-3.2, 3.2), min_size=4, max_size=4))
+def test_arm_forward_kinematics_is_the_retarget_chain(q: list[float]) -> None:
+    """The instrument's own forward kinematics of its arm against the retarget plugin's chain."""
+    chain = Chain(list(ARM_LENGTHS), list(ARM_AXES))
+    angles = np.concatenate([[q], arm_angles(50)])
+    expected = chain.forward(angles)
+    # three rotations and a running sum of links up to |X| ~ 630 mm: ~20 roundings
+    assert np.abs(arm_positions(angles) - expected).max() <= roundoff(scale=np.abs(expected).max(), ops=20)
+
+
+def test_a_recorded_motion_is_read_by_the_plugin_answering_the_hook(tmp_path: Path) -> None:
+    """A marker file played by the simulator: read through ``mirrorlab_read_motion`` (the retarget
+    plugin's readers), with ``A+B`` a midpoint, ``scale`` and ``skip`` applied."""
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-500.0, 500.0, (12, 3, 3))
+    path = tmp_path / "arm.c3d"
+    write_c3d(path, ["SHO", "ELB1", "ELB2"], 50.0, points)
+    positions, names, rate = simulated_chain(str(path), ["SHO", "ELB1+ELB2"], scale=2.0, skip=2)
+    assert names == ["SHO", "ELB1+ELB2"] and rate == 50.0 and positions.shape == (10, 2, 3)
+    expected = 2.0 * np.stack([points[2:, 0], points[2:, 1:].mean(axis=1)], axis=1)
+    # the C3D stores float32 coordinates: half an ulp (2^-24 relative) of each, a midpoint of two at
+    # most one ulp (2^-23) of the scaled coordinates
+    assert np.abs(positions - expected).max() <= 2.0 ** -23 * np.abs(expected).max()
+
+
+def test_an_unreadable_recording_is_a_configuration_error_naming_the_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigurationError, match=r"chain source simulator: .*nothing\.bvh"):
+        ChainSource.make_simulator({"motion": str(tmp_path / "nothing.bvh")}, seed=0)
+    path = tmp_path / "arm.c3d"
+    write_c3d(path, ["SHO", "ELB"], 50.0, np.zeros((3, 2, 3)))
+    with pytest.raises(ConfigurationError, match="chain source simulator: .*WRI"):
+        ChainSource.make_simulator({"motion": str(path), "joints": "SHO,WRI"}, seed=0)
+
+
+def test_reading_a_recording_imports_only_the_plugin_that_declares_the_hook(tmp_path: Path) -> None:
+    """``mirrorlab_read_motion`` is declared in ``mirrorlab.provides``: a fresh process imports the
+    retarget plugin (and what it uses) for it, and no other plugin."""
+    path = tmp_path / "arm.c3d"
+    write_c3d(path, ["SHO", "ELB"], 50.0, np.ones((3, 2, 3)))
+    probe = ("import sys\nfrom mirrorlab.instruments.reference.chains import simulated_chain\n"
+             f"print(simulated_chain({str(path)!r}, ['SHO', 'ELB'])[0].shape)\n"
+             "print(sorted({'.'.join(m.split('.')[:3]) for m in sys.modules if m.startswith('mirrorlab.plugins.')}))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0] == "(3, 2, 3)"
+    assert out[1] == "['mirrorlab.plugins.kinematics', 'mirrorlab.plugins.retarget']"

@@ -11,10 +11,11 @@ import cv2
 import numpy as np
 import pytest
 from mirrorlab.core.devices import SimulatorServer, open_port
+from mirrorlab.core.devices.wire import decode_bits
 from mirrorlab.core.errors import DeviceReplyError
 from mirrorlab.instruments.film_scanner import Film, FilmScanner, FilmScannerModel
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
-from mirrorlab.instruments.film_scanner.wire import decode_bits
+from mirrorlab.instruments.film_scanner.wire import PIXELS
 
 from tests.tolerances import roundoff
 
@@ -104,7 +105,7 @@ def test_head_reports_no_frame_at_the_end_of_the_film() -> None:
 def test_line_grey_and_scan_replies(scanner: tuple[FilmScanner, SimulatorServer]) -> None:
     dev, _ = scanner
     line = dev.query("LINE?").data[0].split(" ")
-    assert line[0] == "LINE" and len(line[2]) == 128 and len(decode_bits(line[2])) == 512
+    assert line[0] == "LINE" and len(line[2]) == 128 and len(decode_bits(line[2], PIXELS)) == 512
     dev.prepare()
     dev.head()
     reply = dev.query("SCAN 5")
@@ -235,7 +236,7 @@ def test_filmnoise_adds_specks_to_the_background() -> None:
     def white_pixels(**faults: str) -> int:
         model = _homed_model(**faults)
         model.execute("HEAD")
-        return sum(decode_bits(l.split()[2])[:40].sum() for l in model.execute("SCAN 20")[:-1])
+        return sum(decode_bits(l.split()[2], PIXELS)[:40].sum() for l in model.execute("SCAN 20")[:-1])
 
     assert white_pixels() == 0
     assert white_pixels(FILMNOISE="0.2") > 5
@@ -244,7 +245,7 @@ def test_filmnoise_adds_specks_to_the_background() -> None:
 # -- acceptance (§1.4, §5) --------------------------------------------------------------------------
 def _scan_image(model: FilmScannerModel, lines: int) -> np.ndarray:
     reply = model.execute(f"SCAN {lines}")
-    return np.array([decode_bits(l.split()[2]) for l in reply[:-1]])
+    return np.array([decode_bits(l.split()[2], PIXELS) for l in reply[:-1]])
 
 
 def test_marker_centres_recovered_without_faults() -> None:

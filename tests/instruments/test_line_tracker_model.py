@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 from mirrorlab.instruments.line_tracker import LineTrackerModel
-from mirrorlab.instruments.line_tracker.sensor import FIELD_ACROSS, FIELD_ALONG
-from mirrorlab.instruments.line_tracker.view import OPTICAL_FAULTS
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FIELD_ACROSS, FIELD_ALONG
+from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS
 
 
 def marks(model: LineTrackerModel, seconds: float) -> np.ndarray:

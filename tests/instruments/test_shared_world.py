@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from mirrorlab.core import Session, ValidationError
 from mirrorlab.instruments.line_tracker import LineTrackerModel
-from mirrorlab.instruments.line_tracker.sensor import angle_to_pixel
 from mirrorlab.instruments.mirror_gimbal import MirrorGimbalModel
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import angle_to_pixel
 from mirrorlab.instruments.virtual_lab.world import SharedWorld, image_in_mirror, mirror_normal
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, build_world
 

@@ -8,13 +8,14 @@ import importlib
 import pytest
 
 MODULES = [
-    "mirrorlab.instruments.line_tracker.sensor",
-    "mirrorlab.instruments.line_tracker.view",
+    "mirrorlab.instruments.virtual_lab.line_sensor.sensor",
+    "mirrorlab.instruments.virtual_lab.line_sensor.view",
     "mirrorlab.instruments.line_tracker.driver",
     "mirrorlab.instruments.line_tracker.experiments",
     "mirrorlab.instruments.virtual_lab.world",
     "mirrorlab.instruments.virtual_lab.worlds",
     "mirrorlab.instruments.virtual_lab.figures",
+    "mirrorlab.instruments.virtual_lab.experiments",
     "mirrorlab.instruments.mirror_gimbal.dynamics",
     "mirrorlab.instruments.mirror_gimbal.driver",
     "mirrorlab.instruments.mirror_gimbal.experiments",

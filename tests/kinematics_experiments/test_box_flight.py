@@ -11,12 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mirrorlab.instruments.virtual_lab import make_lab
-from mirrorlab.instruments.virtual_lab.box_flight import (
-    THESIS_FILM_SIGMA_MM,
-    rotation_sensitivity,
-    simulate_box_flight,
-    thesis_box_lab,
-)
+from mirrorlab.instruments.virtual_lab.box_flight import THESIS_FILM_SIGMA_MM, thesis_box_lab
 from mirrorlab.plugins.kinematics import kabsch
 from mirrorlab.plugins.kinematics.synthetic import box_inertia, box_vertices
 from mirrorlab.plugins.photogrammetry.mirror import triangulate_mirror
@@ -24,6 +19,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
 
 from tests.derived_bounds import natural_end_error
+from tests.kinematics_experiments.box_flight import rotation_sensitivity, simulate_box_flight
 from tests.tolerances import roundoff
 
 VERTS = box_vertices([200.0, 200.0, 300.0])
@@ -158,7 +154,9 @@ def test_wrong_lab_is_refused():
 def test_docstring_examples_run():
     import doctest
 
-    import mirrorlab.instruments.virtual_lab.box_flight as module
+    import mirrorlab.instruments.virtual_lab.box_flight as lab
 
-    res = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert res.attempted >= 5 and res.failed == 0
+    from tests.kinematics_experiments import box_flight as chain
+
+    results = [doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE) for module in (lab, chain)]
+    assert sum(r.attempted for r in results) >= 5 and not any(r.failed for r in results)

@@ -13,7 +13,9 @@ from mirrorlab.plugins.mechanisms import (
     InvalidPoints,
     reconstruct_four_bar,
 )
-from mirrorlab.plugins.mechanisms.synthetic import TABLE_5_1, THESIS_FOUR_BAR, four_bar_markers
+from mirrorlab.plugins.mechanisms.synthetic import TABLE_5_1, THESIS_FOUR_BAR, four_bar_markers, four_bar_positions
+
+from tests.tolerances import abs_err, roundoff
 
 from tests.derived_bounds import perturbation_rounding
 from tests.tolerances import roundoff
@@ -35,6 +37,23 @@ def _true_joints(frames: int, theta0: float = 0.0) -> np.ndarray:
     scene = FourBarScene(theta0=theta0)
     a = scene.state(np.arange(frames) * np.deg2rad(12.0) / scene.omega).analytic
     return np.stack([a["G1"], a["J1"], a["J2"], a["G2"]], 1)[..., :2]
+
+
+def test_the_synthetic_four_bar_is_the_virtual_lab_scene() -> None:
+    """The plugin's own generator (loop closed by the cosine law, complex numbers) against the virtual
+    lab's scene (circle intersection): the same mechanism and markers, independently computed."""
+    scene = FourBarScene()
+    theta = np.linspace(-7.0, 7.0, 701)
+    expected = scene.positions(theta / scene.omega)[..., :2]
+    # J2 where the circles meet: the root's condition is coupler / h, h the height of J2 over the
+    # line J1-G2 (it vanishes when the links line up); ~10 roundings of coordinates up to the reach
+    a = scene.state(theta / scene.omega).analytic
+    J21, G21 = a["J2"] - a["J1"], a["G2"] - a["J1"]
+    h = np.abs(np.cross(J21, G21)[:, 2]) / np.linalg.norm(G21, axis=1)
+    tol = roundoff(cond=float(np.max(scene.coupler / h)), scale=np.abs(expected).max(), ops=20)
+    assert abs_err(four_bar_positions(theta), expected) <= tol
+    _, truth = four_bar_markers(30, noise="none", shuffle=False, theta0=0.7)
+    assert abs_err(truth, scene.positions((0.7 + np.arange(30) * np.deg2rad(12.0)) / scene.omega)[..., :2]) <= tol
 
 
 @pytest.mark.parametrize("method", ["least_squares", "thesis"])

@@ -8,10 +8,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 from mirrorlab.core import Session
+from mirrorlab.core.devices.wire import decode_bits
 from mirrorlab.instruments.film_scanner import FilmScannerModel
 from mirrorlab.instruments.film_scanner.film import PIXEL_MM
 from mirrorlab.instruments.film_scanner.virtual import SOURCE_SIZE, virtual_film
-from mirrorlab.instruments.film_scanner.wire import decode_bits
+from mirrorlab.instruments.film_scanner.wire import PIXELS
 from mirrorlab.instruments.virtual_lab import RenderSettings, make_lab
 
 from tests.tolerances import roundoff
@@ -76,7 +77,7 @@ def test_film_of_lab_frames_scanned_by_fscan_shows_the_markers() -> None:
     for cmd in ("SIM:CLOCK FAST", "CLAMP BASE", "HOME", "CLAMP CARRIER", "HEAD"):
         assert model.execute(cmd)[-1].startswith("OK"), cmd
     lines = model.execute("SCAN 344")
-    image = np.array([decode_bits(line.split()[2]) for line in lines[:-1]], dtype=np.uint8)
+    image = np.array([decode_bits(line.split()[2], PIXELS) for line in lines[:-1]], dtype=np.uint8)
     n, _, stats, centres = cv2.connectedComponentsWithStats(image)
     blobs = centres[1:][stats[1:, cv2.CC_STAT_AREA] >= 10]
     truth = sorted(film.markers, key=lambda mk: mk.col_px)

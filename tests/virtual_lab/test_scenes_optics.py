@@ -19,14 +19,16 @@ from mirrorlab.instruments.virtual_lab import (
     thesis_grid_points,
     view_points,
 )
-from mirrorlab.plugins.kinematics import kabsch, rssr_state, upper_limb_angles
+from mirrorlab.instruments.virtual_lab.motion import rssr_motion
+from mirrorlab.plugins.kinematics import kabsch, upper_limb_angles
 
 from tests.tolerances import roundoff
 
 
-def test_rssr_scene_is_rssr_state_exactly() -> None:
+def test_rssr_scene_is_the_lab_rssr_motion_exactly() -> None:
+    # the lab's own RSSR (its cross-check against the kinematics plugin: test_own_models.py)
     t = np.linspace(0.0, 12.0, 37)
-    s = rssr_state(0.58 * t)
+    s = rssr_motion(0.58 * t)
     st0 = RSSRScene().state(t)
     assert np.array_equal(st0.positions, np.stack([s.S_A, s.S_C], axis=1))
     for key in ("phi", "phi_dot", "phi_ddot"):
@@ -169,7 +171,7 @@ def test_virtual_image_is_the_projected_reflection_on_the_epipolar_line(x: float
     # the projection of V: pixels ~1e3 from a ~20-rounding pinhole-plus-distortion evaluation, after V's error
     px = lab.camera.project(V)[0]
     np.testing.assert_allclose(v.virtual_xy[0, 0, 0], px, rtol=0, atol=roundoff(scale=np.abs(px).max(), ops=20))
-    e = lab.camera.project(m.virtual_camera(lab.camera.camera_center).center[None])[0]   # mirror epipole
+    e = lab.camera.project(m.virtual_centre(lab.camera.camera_center)[None])[0]   # mirror epipole
     r, q = v.real_xy[0, 0] - e, v.virtual_xy[0, 0, 0] - e
     # both image points and the epipole carry ~20 roundings of their pixel coordinates; r and q are
     # differences from the epipole, so the sine of their angle is good to that over |r| and |q|

@@ -3,7 +3,7 @@ gimbal with a detector on each axis.
 
 A scan's sample line leaves as soon as the scan takes it (:meth:`next_due_ms` wakes the server
 then), the detector noise has its own generator (re-seeded by ``SIM:SEED``), and the optical
-faults (:data:`~mirrorlab.instruments.line_tracker.view.OPTICAL_FAULTS`) have their arguments
+faults (:data:`~.view.OPTICAL_FAULTS`) have their arguments
 checked before the simulator records them.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 from mirrorlab.core.devices import CommandError
-from mirrorlab.instruments.virtual_lab.world import InWorld
 
+from ..world import InWorld
 from .detector import Lines
 from .view import OPTICAL_FAULTS, check_optical_fault
 

@@ -11,9 +11,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from mirrorlab.instruments.virtual_lab.world import TrackingWorld, axis_angles
 from numpy.typing import ArrayLike, NDArray
 
+from ..world import TrackingWorld, axis_angles
 from .sensor import FIELD_ACROSS, pixel_angles, sphere_projection
 
 FloatArray = NDArray[np.float64]

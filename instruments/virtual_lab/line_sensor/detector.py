@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
-from mirrorlab.instruments.film_scanner.wire import encode_bits
+from mirrorlab.core.devices.wire import encode_bits
 
 from .sensor import MAX_CLOCK_HZ, MIN_CLOCK_HZ, PIXELS, SATURATION, adapt_threshold, find_runs, mark_of_run, select_run
 
