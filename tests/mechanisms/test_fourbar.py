@@ -15,10 +15,8 @@ from mirrorlab.plugins.mechanisms import (
 )
 from mirrorlab.plugins.mechanisms.synthetic import TABLE_5_1, THESIS_FOUR_BAR, four_bar_markers, four_bar_positions
 
-from tests.tolerances import abs_err, roundoff
-
 from tests.derived_bounds import perturbation_rounding
-from tests.tolerances import roundoff
+from tests.tolerances import abs_err, roundoff
 
 
 def _rounding_bounds(points: np.ndarray, method: str = "least_squares", **kw: object) -> tuple[float, float]:
