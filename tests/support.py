@@ -49,6 +49,20 @@ def built_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Calla
     return folder
 
 
+def source_copy(dest: Path) -> Path:
+    """A copy of what ``pip install .`` reads (pyproject, README, the four package folders) in ``dest``.
+
+    Builds from a copy: setuptools writes ``build/`` into the tree it builds, which two xdist workers
+    building the checkout at once would share.
+    """
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, dest / name)
+    for folder in ("core", "instruments", "plugins", "sessions"):
+        shutil.copytree(REPO / folder, dest / folder, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    return dest
+
+
 def pip_install_target(package: Path, target: Path) -> Path:
     """``pip install --target`` a test plugin (no dependencies: mirrorlab is already installed)."""
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation",

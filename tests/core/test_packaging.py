@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.support import REPO
+from tests.support import REPO, source_copy
 
 #: import package -> source folder; ``mirrorlab`` itself is a regular package whose ``__init__.py`` is in core/_mirrorlab
 FOLDERS = {"mirrorlab": "core/_mirrorlab", "mirrorlab.core": "core", "mirrorlab.instruments": "instruments",
@@ -48,7 +48,7 @@ def test_every_subpackage_is_listed_in_pyproject() -> None:
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "--no-build-isolation",
-                    "-w", str(out), str(REPO)], check=True)
+                    "-w", str(out), str(source_copy(tmp_path_factory.mktemp("source")))], check=True)
     return next(out.glob("mirrorlab-*.whl"))
 
 
