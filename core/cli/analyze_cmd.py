@@ -14,7 +14,7 @@ from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
 from .options import add_parameter_options, collected, existing_path
-from .outputs import add_overwrite_option, cli_advice
+from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice
 from .progress import progress_bar
 from .run_cmd import print_summary
 
@@ -67,6 +67,7 @@ def add(sub: argparse._SubParsersAction) -> None:
         p.add_argument("--simulate", action="store_true", help="use the plugin's simulator")
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
+        add_allow_empty_option(p)
         add_parameter_options(p, cls.parameters)
         p.set_defaults(func=record, instrument_name=name)
 
@@ -125,5 +126,5 @@ def record(args: argparse.Namespace) -> int:
     asked = (f"of the requested {args.seconds:g} s (--seconds)" if args.seconds
              else "until the source ended (--seconds 0)")
     print(f"recorded {s.recorded_seconds:.1f} s {asked}")
-    print_summary(args.out)
-    return 1 if failed else 0
+    code = print_summary(args.out, None if failed else args.allow_empty)  # a failure says why it is empty
+    return 1 if failed else code
