@@ -11,6 +11,7 @@ that caused it, s) as a sample of ``latency``, so the session records what the l
 from __future__ import annotations
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -169,16 +170,31 @@ class ControllerRunner:
         self._thread.start()
 
     def stop(self, timeout: float = 2.0) -> None:
-        """Stop the thread (after its current block) and release the subscription (idempotent)."""
+        """Stop the thread (after its current block) and release the subscription (idempotent).
+
+        A controller that takes every block in order (``latest_only = False``, a filter) first works
+        through the blocks already waiting, for up to half of ``timeout``; the input samples it never
+        processed (it fell behind, e.g. under load) are reported in one ``inputs_unprocessed`` warning.
+        """
+        thread, sub = self._thread, self._subscription
+        running = thread is not None and thread.is_alive() and thread is not threading.current_thread()
+        if running and sub is not None and not self.controller.latest_only:
+            deadline = time.monotonic() + timeout / 2
+            while sub.nbytes and thread.is_alive() and time.monotonic() < deadline:
+                time.sleep(0.005)
         self._stop.set()
-        if self._subscription is not None:
-            self._subscription.close()  # wakes a waiting get()
-        thread = self._thread
+        if sub is not None:
+            sub.close()  # wakes a waiting get()
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout)
             if thread.is_alive():
                 self.report("error", "stop_timeout", f"controller {self.label!r} did not stop within {timeout:g} s "
                             "(its on_block does not return); the session goes on without it")
+        if thread is not None and sub is not None and sub.discarded and not self.controller.latest_only \
+                and self.state != "failed":  # a failure is its own error
+            self.report("warning", "inputs_unprocessed", f"controller {self.label!r} fell behind its input: "
+                        f"{sub.discarded} input sample{'s' if sub.discarded != 1 else ''} got no output (the "
+                        "computer did not keep up with the input rate)", samples=sub.discarded)
         self._thread = None
         with self._outbox_ready:
             self._outbox.clear()  # not sent: the instruments keep the last acknowledged value

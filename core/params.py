@@ -149,6 +149,10 @@ class Parameter:
     shape
         Makes the parameter an array of ``int`` or ``float`` of this shape (``(3,)``: a point;
         ``(None, 3)``: any number of points); the value is a tuple (of tuples).
+    path
+        The value names a file or folder (a ``str``; type ``pathlib.Path`` implies it): a recipe
+        resolves a relative one against the recipe's own folder, whatever the working folder
+        (:func:`mirrorlab.core.recipes.load_recipe`); elsewhere it is used as given.
 
     Examples
     --------
@@ -168,10 +172,15 @@ class Parameter:
     help: str = ""
     live: bool = False
     shape: tuple[int | None, ...] | None = None
+    path: bool = False
 
     def __post_init__(self) -> None:
         if self.type not in _TYPE_NAMES:
             raise TypeError(f"parameter {self.name!r}: unsupported type {self.type!r}")
+        if self.type is Path:
+            object.__setattr__(self, "path", True)
+        elif self.path and self.type is not str:
+            raise TypeError(f"parameter {self.name!r}: path=True needs type str or pathlib.Path, not {self.type_name}")
         if self.shape is not None:
             object.__setattr__(self, "shape", tuple(self.shape))
             if self.type not in (int, float):
@@ -387,16 +396,19 @@ class ParameterSet:
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.parameters if not p.required}
 
-    def problems(self, values: Mapping[str, Any], where: str = "",
-                 file: str | None = None) -> tuple[dict[str, Any], list[Problem]]:
+    def problems(self, values: Mapping[str, Any], where: str = "", file: str | None = None,
+                 others: Iterable[str] = ()) -> tuple[dict[str, Any], list[Problem]]:
         """Validate ``values``; return the typed values (defaults filled in) and every problem.
 
         ``where`` is the key path prefix used in problem reports (``"instruments.cam.settings"``).
+        ``others`` are keys the caller validates itself (a recipe step's ``action`` and nested
+        tables): skipped here, but listed with the parameters when a key is unknown, so that the
+        list names every key the table takes.
         """
         prefix = f"{where}." if where else ""
         out: dict[str, Any] = {}
         problems: list[Problem] = []
-        known = {p.name for p in self.parameters}
+        known = {p.name for p in self.parameters} | set(others)
         for key in values:
             if key not in known:
                 hint = f"; known: {', '.join(sorted(known))}" if known else "; it takes none"

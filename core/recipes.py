@@ -31,12 +31,18 @@
 :func:`load_recipe` validates *everything* before anything starts and reports every problem with
 file, key path and reason. ``--set KEY=VALUE`` overrides (``instruments.cam.settings.lines=64``,
 ``steps.0.seconds=2``) are applied first and stored with the recipe text in the session file.
+
+A relative path in a setting that names a file or folder (a :class:`Parameter` with ``path``:
+a motion file, a frame folder, a figures folder) is relative to the recipe's own folder, whatever
+the working folder, in every table: instrument settings, controller settings, ``[world]`` and steps
+(also when given with ``--set``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -180,6 +186,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         _apply_override(data, keys, value)
     registry = registry or get_registry()
     problems: list[Problem] = []
+    folder = path.resolve().parent
 
     for key in data:
         if key not in ("session", "instruments", "controllers", "steps", "world"):
@@ -206,8 +213,8 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         except PluginError as exc:
             problems.append(Problem(f"{where}.plugin", str(exc), file))
             continue
-        settings, more = cls.parameters.problems(_table(table, "settings", problems, file, where),
-                                                 f"{where}.settings", file)
+        settings, more = cls.parameters.problems(beside(folder, _table(table, "settings", problems, file, where),
+                                                        cls.parameters), f"{where}.settings", file)
         problems += more
         sim_table = _table(table, "simulator", problems, file, where)
         simulator, more = SIMULATOR_OPTIONS.problems(sim_table, f"{where}.simulator", file)
@@ -222,9 +229,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
                                           values["timeout"], values["reconnect"], settings, simulator))
 
-    world = _world(data, instruments, registry, problems, file) if "world" in data else None
+    world = _world(data, instruments, registry, problems, file, folder) if "world" in data else None
     controllers = [plan for label, table in _table(data, "controllers", problems, file).items()
-                   if (plan := _controller_plan(label, table, instruments, registry, problems, file))]
+                   if (plan := _controller_plan(label, table, instruments, registry, problems, file, folder))]
 
     steps: list[StepPlan] = []
     raw_steps = data.get("steps", [])
@@ -242,7 +249,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         except PluginError as exc:
             problems.append(Problem(f"{where}.action", str(exc), file))
             continue
-        rest = {k: v for k, v in table.items() if k != "action"}
+        rest = beside(folder, {k: v for k, v in table.items() if k != "action"}, cls.parameters)
         values, more = cls.validate(rest, where, file, registry, labels)
         problems += more
         if analysis and cls.records:
@@ -264,8 +271,28 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
                   instruments, steps, controllers, world)
 
 
+def beside(folder: Path, table: Mapping[str, Any], params: ParameterSet) -> dict[str, Any]:
+    """``table`` with every relative path of a path-valued parameter (:attr:`Parameter.path`) made
+    relative to ``folder`` (the recipe's): the one rule for the files and folders a recipe names.
+
+    Examples
+    --------
+    >>> params = ParameterSet(Parameter("motion", str, "", path=True), Parameter("joints", str, ""))
+    >>> beside(Path("/lab/recipes"), {"motion": "../data/walk.bvh", "joints": "a,b"}, params)
+    {'motion': '/lab/data/walk.bvh', 'joints': 'a,b'}
+    >>> beside(Path("/lab/recipes"), {"motion": "/data/walk.bvh"}, params)
+    {'motion': '/data/walk.bvh'}
+    """
+    def resolved(value: str) -> str:
+        given = Path(value).expanduser()
+        return os.path.normpath(given if given.is_absolute() else folder / given)  # "a/../b" as "b" in messages
+
+    return {k: resolved(v) if k in params and params[k].path and isinstance(v, str) and v else v
+            for k, v in table.items()}
+
+
 def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry: Registry,
-           problems: list[Problem], file: str) -> dict[str, Any] | None:
+           problems: list[Problem], file: str, folder: Path) -> dict[str, Any] | None:
     """Validate ``[world]`` against the world parameters of the recipe's simulated instruments."""
     table = _table(data, "world", problems, file)
     sets = {}
@@ -279,14 +306,14 @@ def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry:
         return None
     values: dict[str, Any] = {}
     for params in sets.values():
-        typed, more = params.problems(table, "world", file)
+        typed, more = params.problems(beside(folder, table, params), "world", file)
         problems += more
         values.update(typed)
     return values
 
 
 def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], registry: Registry,
-                     problems: list[Problem], file: str) -> ControllerPlan | None:
+                     problems: list[Problem], file: str, folder: Path) -> ControllerPlan | None:
     """Validate ``[controllers.<label>]``: plugin, settings, and bindings to the recipe's instruments."""
     where = f"controllers.{label}"
     if not isinstance(table, Mapping):
@@ -300,7 +327,8 @@ def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], 
         problems.append(Problem(f"{where}.plugin", str(exc) if "plugin" in table else
                                 "required: a registered controller (`mirrorlab plugins` lists them)", file))
         return None
-    settings, more = cls.parameters.problems(_table(table, "settings", problems, file, where), f"{where}.settings", file)
+    settings, more = cls.parameters.problems(beside(folder, _table(table, "settings", problems, file, where),
+                                                    cls.parameters), f"{where}.settings", file)
     problems += more
     if more:
         return None
@@ -448,13 +476,12 @@ def check_on_session(recipe: Recipe, session: Session) -> None:
     step runs, so that a second analysis of one file stops before appending anything."""
     problems = [problem for step in recipe.steps
                 for problem in step.cls.session_problems(session, step.values, f"steps.{step.index}")]
-    for problem in problems:
-        problem.file = str(recipe.path)
-    if problems:
-        problems.append(Problem("session", f"{session.path.name} holds the results of an earlier analysis; run "
-                                           "the recipe on a fresh copy of the recording (mirrorlab batch copies "
-                                           "its inputs to --out), or give each key above a new name with --set"))
-        raise ValidationError(problems)
+    if problems:  # one line: what is taken, and the one remedy for all of it
+        taken = "; ".join(str(problem) for problem in problems)
+        raise ValidationError([Problem("", f"{session.path.name} holds the results of an earlier analysis ({taken}); "
+                                           "run the recipe on a fresh copy of the recording (mirrorlab batch copies "
+                                           "its inputs to --out), or give those keys new names with --set",
+                                       str(recipe.path))])
 
 
 def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,

@@ -56,8 +56,15 @@ class Step(ABC):
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         """Typed values of the step's table and every problem found (file, key path, reason)."""
-        values, problems = cls.parameters.problems(table, where, file)
+        values, problems = cls.scalars(table, where, file)
         return values, problems + instrument_problems(values, cls.instrument_keys, where, file, instruments)
+
+    @classmethod
+    def scalars(cls, table: Mapping[str, Any], where: str, file: str | None) -> tuple[dict[str, Any], list[Problem]]:
+        """Typed values of the step's :attr:`parameters` in ``table`` (its nested :attr:`tables` are left
+        to :meth:`validate`), and every problem; an unknown key is reported with every key the step
+        takes: ``action``, the parameters and the tables."""
+        return cls.parameters.problems(table, where, file, others=("action", *cls.tables))
 
     @classmethod
     def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
@@ -128,8 +135,7 @@ class Run(Step):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
-        values, problems = cls.parameters.problems(scalar, where, file)
+        values, problems = cls.scalars(table, where, file)
         if problems:
             return values, problems
         try:

@@ -126,6 +126,7 @@ class Subscription:
     :meth:`get` waits (for a closed loop in another thread). The blocks waiting are bounded by
     their size: when they would hold more than ``max_bytes``, the oldest are discarded and counted
     in ``dropped`` (blocks) — a slow reader loses old data, never memory or the device's pace.
+    ``discarded`` counts the samples never read: those dropped so, and those still waiting at :meth:`close`.
     Use it as a context manager, or :meth:`close` it, to stop receiving; the session closes the
     ones it handed out when it closes.
     """
@@ -138,6 +139,7 @@ class Subscription:
         self.max_bytes = max_bytes
         self.latest: Block | None = None
         self.dropped = 0
+        self.discarded = 0
         self.closed = False
         self._blocks: deque[Block] = deque()
         self._bytes = 0
@@ -165,8 +167,10 @@ class Subscription:
             self._blocks.append(block)
             self._bytes += size
             while self._bytes > self.max_bytes and len(self._blocks) > 1:
-                self._bytes -= self._blocks.popleft().nbytes
+                old = self._blocks.popleft()
+                self._bytes -= old.nbytes
                 self.dropped += 1
+                self.discarded += len(old.times)
             self.latest = block
             self._cond.notify_all()
 
@@ -193,6 +197,7 @@ class Subscription:
             if self.closed:
                 return
             self.closed = True
+            self.discarded += sum(len(b.times) for b in self._blocks)
             self._blocks.clear()
             self._bytes = 0
             self._cond.notify_all()

@@ -29,9 +29,10 @@ EXIT_CODES = """\
 exit codes (every command):
   0  ok
   1  runtime failure: a failed algorithm run or step, a device, file or plugin error,
+     a recording in which an instrument delivered no sample (unless --allow-empty),
      an incomplete session (session check), a broken plugin (plugins doctor)
   2  usage or validation error: unknown option or input name, bad value, invalid recipe,
-     missing input file or folder
+     missing input file, folder, dataset or stream
 
 Add --debug anywhere for tracebacks and debug logging."""
 

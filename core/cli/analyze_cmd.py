@@ -16,7 +16,7 @@ from ..session import Session
 from ..steps import Acquire
 from .commands import named_after
 from .options import add_parameter_options, collected, existing_path
-from .outputs import add_overwrite_option, cli_advice
+from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice
 from .progress import progress_bar
 from .run_cmd import print_summary
 
@@ -90,6 +90,7 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.add_argument("--simulate", action="store_true", help="use the plugin's simulator")
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
+        add_allow_empty_option(p)
         add_parameter_options(p, cls.parameters)
         p.set_defaults(func=record, instrument_name=name)
 
@@ -148,5 +149,5 @@ def record(args: argparse.Namespace) -> int:
     asked = (f"of the requested {args.seconds:g} s (--seconds)" if args.seconds
              else "until the source ended (--seconds 0)")
     print(f"recorded {s.recorded_seconds:.1f} s {asked}")
-    print_summary(args.out)
-    return 1 if failed else 0
+    code = print_summary(args.out, None if failed else args.allow_empty)  # a failure says why it is empty
+    return 1 if failed else code

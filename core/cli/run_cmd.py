@@ -15,7 +15,7 @@ from ..errors import Problem, ValidationError
 from ..recipes import Recipe, load_recipe, run_analysis, run_recipe
 from ..session import Session
 from .options import existing_path
-from .outputs import add_overwrite_option, cli_advice
+from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice, group_contents, plural
 from .progress import progress_bar
 
 _BUNDLED = resources.files("mirrorlab.sessions")
@@ -26,18 +26,17 @@ DEMO_ANALYSIS = Path(str(_BUNDLED / "rssr_analysis.toml"))
 #: Where ``mirrorlab demo`` writes without ``--out``, relative to the current folder, and the file's stem.
 DEMO_OUTPUT = Path("sessions") / "out"
 DEMO_NAME = "rssr_mirror"
+#: The ``--set`` example of ``mirrorlab demo --help``: a shorter film (6 of 33 frames) of the recording recipe.
+DEMO_EXAMPLE = "instruments.rssr.settings.scene_frames=6"
 
 
-def _plural(n: int, word: str) -> str:
-    return f"{n} {word}{'' if n == 1 else 's'}"
-
-
-def _common(p: argparse.ArgumentParser, out_help: str) -> None:
+def _common(p: argparse.ArgumentParser, out_help: str, example: str) -> None:
     p.add_argument("--out", type=Path, metavar="FILE.h5", help=out_help)
     add_overwrite_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a recipe value, e.g. steps.0.seconds=2 (repeatable)")
+                   help=f"override a recipe value, e.g. {example} (repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_allow_empty_option(p)
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -45,7 +44,8 @@ def add(sub: argparse._SubParsersAction) -> None:
                        description="Run a recipe into a new session file, or with --session an analysis recipe "
                                    "(no instruments, no acquire step) on an existing session, appending results.")
     p.add_argument("recipe", type=Path, help="recipe file (TOML), e.g. sessions/scan_film.toml")
-    _common(p, "session file to write (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)")
+    _common(p, "session file to write (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)",
+            "steps.0.seconds=2")
     p.add_argument("--check", action="store_true", help="only validate the recipe")
     p.add_argument("--session", type=existing_path, metavar="FILE.h5",
                    help="run an analysis recipe on this existing session, appending its results")
@@ -59,7 +59,8 @@ def add(sub: argparse._SubParsersAction) -> None:
                                    f"then {DEMO_ANALYSIS.name} on its session; see docs/demo.md) on simulated "
                                    "instruments, from any folder. --set steps.N... overrides the analysis recipe, "
                                    "other keys the recording one.")
-    _common(d, f"session file to write (default: {DEMO_OUTPUT}/{DEMO_NAME}-<UTC time>.h5 in the current folder)")
+    _common(d, f"session file to write (default: {DEMO_OUTPUT}/{DEMO_NAME}-<UTC time>.h5 in the current folder)",
+            DEMO_EXAMPLE)
     d.set_defaults(func=demo, check=False)
 
 
@@ -67,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
     analysis = getattr(args, "session", None) is not None
     recipe = load_recipe(args.recipe, args.overrides, analysis=analysis)
     if args.check:
-        print(f"{args.recipe}: ok ({_plural(len(recipe.instruments), 'instrument')}, "
-              f"{_plural(len(recipe.steps), 'step')})")
+        print(f"{args.recipe}: ok ({plural(len(recipe.instruments), 'instrument')}, "
+              f"{plural(len(recipe.steps), 'step')})")
         return 0
     if analysis:
         return _run_on_session(args, recipe)
@@ -86,8 +87,7 @@ def run(args: argparse.Namespace) -> int:
             run_recipe(recipe, out, on_session=on_session, overwrite=args.overwrite)
     finally:
         restore_interrupt()
-    print_summary(out)
-    return 0
+    return print_summary(out, args.allow_empty)
 
 
 def stop_on_interrupt(session: Session) -> None:
@@ -143,11 +143,13 @@ def demo(args: argparse.Namespace) -> int:
             run_analysis(analysis, out, on_session=subscribe)
     finally:
         restore_interrupt()
-    print_summary(out)
-    return 0
+    return print_summary(out, args.allow_empty)
 
 
-def print_summary(path: Path) -> None:
+def print_summary(path: Path, allow_empty: bool | None = None) -> int:
+    """Print what the session holds; return the exit code. After a recording (``allow_empty`` not
+    ``None``) an instrument that recorded no sample at all (its source delivered nothing) is an
+    error (1), or with ``allow_empty`` a warning (0)."""
     with Session.open(path) as s:
         info = s.describe()
     print(f"session {info['attributes']['session_id']} [{info['attributes']['status']}] -> {path}")
@@ -155,5 +157,16 @@ def print_summary(path: Path) -> None:
         for name, st in inst["streams"].items():
             shape = "x".join(map(str, st["shape"])) or "scalar"
             print(f"  {label}/{name}: {st['samples']} samples of {shape} {st['dtype']} {st['unit']}")
+    for group, g in info["groups"].items():
+        print(f"  {group}: {group_contents(g)}")
     for r in info["results"]:
         print(f"  {r['path']}: {r['status']} {r['error']}")
+    empty = [label for label, inst in info["instruments"].items()
+             if inst["streams"] and not any(st["samples"] for st in inst["streams"].values())]
+    if allow_empty is None or not empty:
+        return 0
+    message = (f"{', '.join(empty)} recorded no sample: the source delivered nothing in the time recorded (e.g. a "
+               f"real-clock film scanner takes seconds per frame: record longer); {path} keeps the empty recording")
+    print(f"mirrorlab: warning: {message}" if allow_empty else
+          f"mirrorlab: error: {message}; add --allow-empty to accept an empty recording", file=sys.stderr)
+    return 0 if allow_empty else 1

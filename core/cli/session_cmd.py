@@ -17,6 +17,7 @@ from ..errors import Problem, SessionError, ValidationError
 from ..session import Session
 from ..store import files, schema
 from .options import existing_path
+from .outputs import group_contents, plural
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -41,8 +42,9 @@ def add(sub: argparse._SubParsersAction) -> None:
     e = ssub.add_parser("export", help="export a stream or result dataset to CSV or .npy")
     e.add_argument("file", type=existing_path, help="session file (.h5)")
     e.add_argument("dataset", help="instrument/stream (e.g. cam/frame_index) or a dataset path")
-    e.add_argument("--out", type=Path, help="output file (default: stdout for CSV)")
-    e.add_argument("--format", choices=("csv", "npy"), default="csv", help="csv (default) or npy (needs --out)")
+    e.add_argument("--out", type=Path, help="output file: FILE.npy with --format npy, any other name for CSV "
+                                            "(default: CSV on stdout)")
+    e.add_argument("--format", choices=("csv", "npy"), default="csv", help="csv (default) or npy (needs --out FILE.npy)")
     e.set_defaults(func=export)
 
 
@@ -81,8 +83,7 @@ def info(args: argparse.Namespace) -> int:
         print(f"  controller {label}: {c['plugin']} {c['version']} ({bound})")
         _print_streams(c["streams"])
     for path, g in data["groups"].items():
-        counts = [f"{g[k]} {k if g[k] != 1 else k[:-1]}" for k in ("datasets", "groups") if g[k]]
-        print(f"  {path}: {', '.join(counts) or 'empty'}" + (f" ({g['description']})" if g["description"] else ""))
+        print(f"  {path}: {group_contents(g)}")
     for r in data["results"]:
         label = f" as {r['label']!r}" if r["label"] else ""
         print(f"  result {r['path']}{label}: {r['status']}" + (f" — {r['error']}" if r["error"] else ""))
@@ -165,26 +166,37 @@ def close(args: argparse.Namespace) -> int:
 
 
 def export(args: argparse.Namespace) -> int:
+    if args.format == "npy" and not args.out:
+        raise ValidationError([Problem("--format npy", "needs --out FILE.npy (binary data does not go to the terminal)")])
+    if args.out and (args.out.suffix.lower() == ".npy") != (args.format == "npy"):
+        # numpy would append .npy to any other name; CSV text in a .npy file would fool numpy readers
+        fix = f"name the file {args.out.stem}.npy" if args.format == "npy" else "add --format npy, or name a .csv file"
+        raise ValidationError([Problem("--out", f"{args.out} does not fit --format {args.format}: {fix}")])
     with files.reading(args.file), Session.open(args.file) as s:
         if args.dataset.startswith("/"):
             if args.dataset.strip("/") not in s.file or not isinstance(s.file[args.dataset], h5py.Dataset):
-                raise SessionError(f"no dataset {args.dataset} in {args.file}; `mirrorlab session tree` lists them")
+                raise ValidationError([Problem("DATASET", f"no dataset {args.dataset} in {args.file}; "
+                                                          "`mirrorlab session tree` lists them")])
             ds = s.file[args.dataset]
             times, data, columns = None, np.atleast_1d(ds[()]), column_names(ds)
         else:
-            inst, _, stream = args.dataset.partition("/")
-            times, data = s.stream(inst, stream)
-            g = s.file[f"instruments/{inst}/{stream}"]
-            columns = [f"time_{schema.attr_str(g, 'time_unit', 's')}", *column_names(g["data"])]
+            source, _, stream = args.dataset.partition("/")
+            key = next((k for k in (f"instruments/{source}/{stream}", f"controllers/{source}/{stream}")
+                        if stream and k in s.file), None)
+            if key is None:
+                raise ValidationError([Problem("DATASET", f"no stream {args.dataset} in {args.file}; "
+                                                          "`mirrorlab session info` lists the streams")])
+            times, data = s.stream(source, stream)
+            columns = [f"time_{schema.attr_str(s.file[key], 'time_unit', 's')}", *column_names(s.file[key]["data"])]
     if args.format == "npy":
-        if not args.out:
-            raise ValidationError([Problem("--format npy", "needs --out FILE (binary data does not go to the terminal)")])
         np.save(args.out, data)
-        print(f"wrote {args.out}")
+        print(f"wrote {args.out}: {plural(len(data), 'sample')} of {'x'.join(map(str, data.shape[1:])) or 'scalar'} "
+              f"{data.dtype}")
         return 0
     flat = data.reshape(len(data), int(np.prod(data.shape[1:])))  # also for 0 samples
     if flat.shape[1] > 4096:
-        raise SessionError(f"{args.dataset} has {flat.shape[1]} values per sample; use --format npy")
+        raise ValidationError([Problem("--format", f"{args.dataset} has {flat.shape[1]} values per sample, too many "
+                                                   "columns for CSV; use --format npy --out FILE.npy")])
     out = open(args.out, "w", newline="") if args.out else sys.stdout
     try:
         w = csv.writer(out)
@@ -194,6 +206,8 @@ def export(args: argparse.Namespace) -> int:
     finally:
         if args.out:
             out.close()
+    if args.out:  # on stdout the CSV is all there is
+        print(f"wrote {args.out}: {plural(len(flat), 'row')} of {plural(len(columns), 'column')}")
     return 0
 
 

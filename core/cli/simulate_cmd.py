@@ -81,8 +81,9 @@ def simulate(args: argparse.Namespace) -> int:
     transport = "tcp" if args.tcp is not None else "pty"
     with SimulatorServer(model, transport, link=args.pty, port=args.tcp or 0) as server:
         print(server.url, flush=True)
+        until = "stop with Ctrl-C" if args.seconds is None else f"stops after {args.seconds:g} s (or Ctrl-C)"
         print(f"mirrorlab: serving the {cls.name} simulator ({model.kind}, seed {args.seed}, {args.clock} clock); "
-              "stop with Ctrl-C", file=sys.stderr, flush=True)
+              f"{until}", file=sys.stderr, flush=True)
         done = threading.Event()
         # Ctrl-C (SIGINT) and SIGTERM both stop it cleanly; SIGINT is handled here even where it was
         # inherited as ignored (a simulator started from a background job), as it is sent on purpose.

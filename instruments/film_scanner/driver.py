@@ -57,7 +57,7 @@ class FilmScanner(SerialInstrument):
     parameters = ParameterSet(
         Parameter("source", str, "fscan", choices=("fscan", "folder", "video", "camera", "virtual"),
                   help="fscan = serial scanner (or simulator); folder/video/camera/virtual = frame source"),
-        Parameter("path", str, "", help="folder of PNG/TIFF/JPEG frames or video file; for fscan "
+        Parameter("path", str, "", path=True, help="folder of PNG/TIFF/JPEG frames or video file; for fscan "
                                         "simulation the film's frame images (empty = generated film)"),
         Parameter("camera_index", int, 0, bounds=(0, 63), help="OpenCV camera index (source = camera)"),
         Parameter("threshold", int, 128, bounds=(0, 255), help="comparator DAC level, counts"),

@@ -125,8 +125,9 @@ class ChainSource(_StreamingInstrument):
         Parameter("rate", float, 100.0, unit="Hz", bounds=(1.0, 1000.0), help="frames per second"),
         Parameter("joints", str, "shoulder,elbow,wrist,hand",
                   help="joints to stream, root to tip, comma-separated (JOINTS? lists the device's)"),
-        Parameter("motion", str, "", help="simulation only: the recording the simulator plays (.bvh, .c3d, .trc, "
-                                          ".tsv; relative to the working directory); empty = a generated arm"),
+        Parameter("motion", str, "", path=True,
+                  help="simulation only: the recording the simulator plays (.bvh, .c3d, .trc, .tsv; in a recipe "
+                       "relative to the recipe's folder); empty = a generated arm"),
         Parameter("scale", float, 1.0, bounds=(0.0, None), help="simulation only: mm per unit of the recording"),
         Parameter("skip", int, 0, bounds=(0, None), help="simulation only: leading frames of the recording to drop"),
     )

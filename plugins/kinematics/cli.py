@@ -261,16 +261,17 @@ def cmd_derivatives(args: argparse.Namespace) -> int:
         out = run_algorithm(src, Derivatives, inputs, params, on_event, units={"time": "s", "values": "mm"})
         xs, v, a = out["smoothed"], out["velocity"], out["acceleration"]
         per = {}
-        lines = [f"{'marker':24s} {'valid %':>8s} {'max |v| m/s':>12s} {'max |a| m/s²':>13s}"]
+        # mm, s like every other length and time mirrorlab prints
+        lines = [f"{'marker':24s} {'valid %':>8s} {'max |v| mm/s':>12s} {'max |a| mm/s²':>13s}"]
         speed, accel = np.linalg.norm(v, axis=-1), np.linalg.norm(a, axis=-1)
         for k, lab in enumerate(labels):
             vs, acc = speed[:, k][np.isfinite(speed[:, k])], accel[:, k][np.isfinite(accel[:, k])]
             per[lab] = {"valid_fraction": round(float(np.isfinite(speed[:, k]).mean()), 6),
-                        "max_speed_m_s": round(float(vs.max()) / 1000, 6) if vs.size else None,
-                        "max_acceleration_m_s2": round(float(acc.max()) / 1000, 6) if acc.size else None}
-            fmt = lambda x: f"{x:12.4f}" if x is not None else f"{'-':>12s}"  # noqa: E731
-            lines.append(f"{lab:24s} {100 * per[lab]['valid_fraction']:8.1f} {fmt(per[lab]['max_speed_m_s'])} "
-                         f"{fmt(per[lab]['max_acceleration_m_s2'])} ")
+                        "max_speed_mm_s": round(float(vs.max()), 3) if vs.size else None,
+                        "max_acceleration_mm_s2": round(float(acc.max()), 3) if acc.size else None}
+            fmt = lambda x, w: f"{x:{w}.1f}" if x is not None else f"{'-':>{w}s}"  # noqa: E731
+            lines.append(f"{lab:24s} {100 * per[lab]['valid_fraction']:8.1f} {fmt(per[lab]['max_speed_mm_s'], 12)} "
+                         f"{fmt(per[lab]['max_acceleration_mm_s2'], 13)}")
         figs = []
         if (d := _figure_dir(args)) is not None:
             figs.append(str(_figures().plot_derivatives(d / "derivatives.png", src.time, labels, xs, v, a,

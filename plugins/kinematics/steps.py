@@ -36,9 +36,7 @@ class ImportMarkers(Step):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
-        if not problems and not values["file"].is_absolute() and file:
-            values["file"] = Path(file).resolve().parent / values["file"]  # relative to the recipe
+        values, problems = cls.scalars(table, where, file)
         if not problems and not Path(values["file"]).is_file():
             problems.append(Problem(f"{where}.file", f"no such marker file {str(values['file'])!r}", file))
         suffix = Path(values["file"]).suffix.lower() if not problems else ""

@@ -15,7 +15,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mirrorlab.core import Algorithm, Problem, Session, ValidationError, add_parameter_options, collected, execute
+from mirrorlab.core import (
+    Algorithm,
+    Parameter,
+    Problem,
+    Session,
+    ValidationError,
+    add_parameter_options,
+    collected,
+    execute,
+)
 
 from .algorithms import FourBarAlgorithm, OptimalWallAlgorithm, SweptArea
 from .errors import MechanismError
@@ -68,11 +77,33 @@ def cmd_four_bar(args: argparse.Namespace) -> int:
 
         figs.append(str(plot_four_bar(Path(args.figures) / "four_bar.png", out["tracks"], out["link"], out["joints"],
                                       title=f"{Path(args.source).name}: reconstructed four-bar")))
-    result = {"lengths_mm": dict(zip(LINK_NAMES, np.round(lengths, 6).tolist(), strict=True)),
-              "rms_mm": round(float(out["rms"]), 6), "scale_mm_per_unit": float(out["scale"]), "figures": figs}
-    text = format_four_bar(THESIS_FOUR_BAR, [(params.get("method", "least_squares"), lengths)]) + \
-        f"\nRMS residual {float(out['rms']):.3f} mm" + "".join(f"\nfigure: {f}" for f in figs)
+    reference = THESIS_FOUR_BAR if args.thesis else \
+        dict(zip(LINK_NAMES, args.reference, strict=True)) if args.reference else None
+    result: dict[str, Any] = {"lengths_mm": dict(zip(LINK_NAMES, np.round(lengths, 6).tolist(), strict=True)),
+                              "rms_mm": round(float(out["rms"]), 6), "scale_mm_per_unit": float(out["scale"])}
+    if reference is not None:
+        result["reference_mm"] = reference
+        result["errors_percent"] = {k: round(100 * (x - reference[k]) / reference[k], 6)
+                                    for k, x in zip(LINK_NAMES, lengths.tolist(), strict=True)}
+    result["figures"] = figs
+    table = format_four_bar(reference, [(params.get("method", "least_squares"), lengths)], table_5_1=args.thesis,
+                            reference="thesis mm" if args.thesis else "reference")
+    text = table + f"\nRMS residual {float(out['rms']):.3f} mm" + "".join(f"\nfigure: {f}" for f in figs)
     return _print(args, result, text)
+
+
+def _lengths(text: str) -> tuple[float, ...]:
+    """``--reference G,I,C,O``: four positive lengths in mm (units allowed, as for any length)."""
+    value, problem = REFERENCE.check(text)
+    if problem is None and min(value) <= 0:
+        problem = f"lengths must be > 0 mm, got {text!r}"
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return value
+
+
+#: ``--reference``: the lengths the reconstructed ones are compared with.
+REFERENCE = Parameter("reference", float, unit="mm", shape=(4,), help="ground, input, coupler, output lengths")
 
 
 def cmd_swept(args: argparse.Namespace) -> int:
@@ -144,6 +175,14 @@ def add(subparsers: argparse._SubParsersAction) -> None:
     p = sub.add_parser("four-bar", help="planar four-bar from unlabeled markers (T, M, 2)")
     _common(p)
     p.add_argument("--figures", metavar="DIR", help="write a PNG of the reconstructed linkage into DIR")
+    compare = p.add_mutually_exclusive_group()
+    compare.add_argument("--reference", type=_lengths, metavar="G,I,C,O",
+                         help="known ground, input, coupler, output lengths [mm]: print each link's error against "
+                              "them (without it the lengths are printed alone)")
+    thesis = ", ".join(f"{v:g}" for v in THESIS_FOUR_BAR.values())
+    compare.add_argument("--thesis", action="store_true",
+                         help=f"the markers are of the thesis's four-bar ({thesis} mm, e.g. from four_bar_markers): "
+                              "compare with it and its Table 5.1")
     add_parameter_options(p, FourBarAlgorithm.parameters)
     p.set_defaults(func=cmd_four_bar)
 

@@ -42,23 +42,46 @@ def _ok_runs(session: Session, algorithm: str) -> list[ResultData]:
     return runs
 
 
-def format_four_bar(true: Mapping[str, float], runs: list[tuple[str, np.ndarray]]) -> str:
-    """Table of link lengths (mm) and errors (%) of each method next to Table 5.1.
+def format_four_bar(true: Mapping[str, float] | None, runs: list[tuple[str, np.ndarray]],
+                    table_5_1: bool = True, reference: str = "true mm") -> str:
+    """Table of link lengths (mm) of each method; with ``true`` lengths also each one's error (%),
+    and with ``table_5_1`` the thesis's Table 5.1 beside them (only meaningful for the thesis's
+    four-bar). ``reference`` heads the column of ``true``; a column is as wide as its method's name.
 
     Examples
     --------
     >>> print(format_four_bar({"ground": 230, "input": 100, "coupler": 220, "output": 133},
-    ...                       [("least_squares", np.array([230.5, 99.9, 220.0, 133.2]))]).splitlines()[2])
-    ground      230.00    217.10   -5.6 %    230.50   +0.2 %
+    ...                       [("least_squares", np.array([230.5, 99.9, 220.0, 133.2]))]).splitlines()[1:3])
+    ['link       true mm Table 5.1     err least_squares     err', 'ground      230.00    217.10   -5.6 %        230.50   +0.2 %']
+    >>> print(format_four_bar(None, [("thesis", np.array([460.0, 200.0, 440.0, 266.0]))]))
+    four-bar link lengths (mm)
+    link        thesis
+    ground      460.00
+    input       200.00
+    coupler     440.00
+    output      266.00
     """
-    head = f"{'link':8s} {'true mm':>9s} {'Table 5.1':>9s} {'err':>7s}" + "".join(
-        f" {name[:9]:>9s} {'err':>7s}" for name, _ in runs)
-    lines = ["four-bar link lengths (mm) and errors, next to the thesis's Table 5.1", head]
+    table_5_1 = table_5_1 and true is not None
+    err = f" {'err':>7s}" if true is not None else ""
+    widths = [max(9, len(name)) for name, _ in runs]
+    head = f"{'link':8s}" + (f" {reference:>9s}" if true is not None else "") + \
+        (f" {'Table 5.1':>9s} {'err':>7s}" if table_5_1 else "") + \
+        "".join(f" {name:>{w}s}{err}" for (name, _), w in zip(runs, widths, strict=True))
+    title = ("four-bar link lengths (mm)" if true is None else
+             "four-bar link lengths (mm) and errors, next to the thesis's Table 5.1" if table_5_1 else
+             "four-bar link lengths (mm) and errors against the reference lengths")
+    lines = [title, head]
     for k, link in enumerate(LINK_NAMES):
-        t51, e51 = TABLE_5_1[link]
-        row = f"{link:8s} {true[link]:9.2f} {t51:9.2f} {e51:+6.1f} %"
-        for _, lengths in runs:
-            row += f" {lengths[k]:9.2f} {100 * (lengths[k] - true[link]) / true[link]:+6.1f} %"
+        row = f"{link:8s}"
+        if true is not None:
+            row += f" {true[link]:9.2f}"
+        if table_5_1:
+            t51, e51 = TABLE_5_1[link]
+            row += f" {t51:9.2f} {e51:+6.1f} %"
+        for (_, lengths), w in zip(runs, widths, strict=True):
+            row += f" {lengths[k]:{w}.2f}"
+            if true is not None:
+                row += f" {100 * (lengths[k] - true[link]) / true[link]:+6.1f} %"
         lines.append(row)
     return "\n".join(lines)
 
@@ -74,7 +97,7 @@ class FourBarReport(Step):
                                               "lengths (the virtual lab writes it); else true_lengths"),
         Parameter("true_lengths", float, (230.0, 100.0, 220.0, 133.0), unit="mm", shape=(4,), bounds=(0.0, None),
                   help="true ground, input, coupler, output lengths when there is no truth in the session"),
-        Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
     )
 
     instrument_keys = ("instrument",)
@@ -139,7 +162,7 @@ class WallReport(Step):
     version = "1.0.0"
     description = "print the arc grid, eq. 6.3 family and optimal_wall runs next to the thesis; PNG figures"
     parameters = ParameterSet(
-        Parameter("figures", str, "", help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
         Parameter("positions", int, 2000, bounds=(10, 100_000), help="rod positions of the figures and eq. 6.3 family"),
     )
 

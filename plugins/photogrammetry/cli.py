@@ -170,34 +170,48 @@ def _jsonable(value: Any) -> Any:
 # ------------------------------------------------------------------------------------------------ calibrate
 
 
+def _calibrate_problems(args: argparse.Namespace) -> list[Problem]:
+    """Every missing or unusable option of ``calibrate``, so that one run names them all."""
+    from .calibration_io import parse_pattern
+    from .errors import InvalidArgument
+
+    problems = []
+    if bool(args.images) == bool(args.points):
+        problems.append(Problem("calibrate", "give exactly one source: --images DIR (chessboard photos) or "
+                                             "--points FILE.csv (calibration points)"))
+    if args.session is None and not args.json:
+        problems.append(Problem("calibrate", "say where the camera goes: --session FILE and/or --json"))
+    if args.images and not args.points:
+        if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
+            problems.append(Problem("--images", f"no such folder {args.images!r}; give a folder of chessboard "
+                                                "photos or a glob such as 'cal/*.png'"))
+        if not args.pattern:
+            problems.append(Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7"))
+        else:
+            try:
+                parse_pattern(args.pattern)
+            except InvalidArgument as exc:
+                problems.append(Problem("--pattern", str(exc)))
+        if args.square is None:
+            problems.append(Problem("--square", "required with --images: the chessboard square side in mm, "
+                                                "e.g. --square 25 (it sets the scale of the calibration)"))
+        elif args.square <= 0:
+            problems.append(Problem("--square", f"must be > 0 mm, got {args.square}"))
+    if args.points and not args.images and not args.camera_center:
+        problems.append(Problem("--camera-center", "required with --points: camera centre X,Y,Z in mm"))
+    return problems
+
+
 def calibrate(args: argparse.Namespace) -> int:
     algs = _algorithms()
-    if bool(args.images) == bool(args.points):
-        raise ValidationError([Problem("calibrate", "give exactly one source: --images DIR (chessboard photos) or "
-                                                    "--points FILE.csv (calibration points)")])
-    if args.session is None and not args.json:
-        raise ValidationError([Problem("calibrate", "say where the camera goes: --session FILE and/or --json")])
+    if problems := _calibrate_problems(args):
+        raise ValidationError(problems)
     extra: dict[str, Any] = {}
     attrs: dict[str, Any] = {}
     if args.images:
-        from .calibration_io import chessboard_inputs, parse_pattern
-        from .errors import InvalidArgument
+        from .calibration_io import chessboard_inputs
 
         algorithm = algs["calibrate_pinhole"]
-        if not any(c in args.images for c in "*?[") and not Path(args.images).exists():
-            raise ValidationError([Problem("--images", f"no such folder {args.images!r}; give a folder of chessboard "
-                                                       "photos or a glob such as 'cal/*.png'")])
-        if not args.pattern:
-            raise ValidationError([Problem("--pattern", "required with --images: chessboard inner corners, e.g. 10x7")])
-        try:
-            parse_pattern(args.pattern)
-        except InvalidArgument as exc:
-            raise ValidationError([Problem("--pattern", str(exc))]) from None
-        if args.square is None:
-            raise ValidationError([Problem("--square", "required with --images: the chessboard square side in mm, "
-                                                       "e.g. --square 25 (it sets the scale of the calibration)")])
-        if args.square <= 0:
-            raise ValidationError([Problem("--square", f"must be > 0 mm, got {args.square}")])
         params = _params_for(args, algorithm, [algs["calibrate_plane"]])
         with progress_bar(not args.no_progress) as on_event:
             bus = EventBus(SessionClock())
@@ -209,8 +223,6 @@ def calibrate(args: argparse.Namespace) -> int:
         attrs = {"images": str(args.images), "pattern": args.pattern, "square_mm": args.square, **found}
     else:
         algorithm = algs["calibrate_plane"]
-        if not args.camera_center:
-            raise ValidationError([Problem("--camera-center", "required with --points: camera centre X,Y,Z in mm")])
         center = _vector(args.camera_center, "--camera-center", "mm")
         if center.shape != (3,):
             raise ValidationError([Problem("--camera-center", f"needs 3 numbers X,Y,Z, got {center.size}")])

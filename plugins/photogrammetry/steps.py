@@ -40,7 +40,7 @@ class Calibrate(Step):
         Parameter("camera", str, help="camera name: the result goes to /calibration/<camera>"),
         Parameter("algorithm", str, "calibrate_plane", choices=("calibrate_plane", "calibrate_pinhole"),
                   help="calibration algorithm"),
-        Parameter("images", str, "", help="folder or glob of chessboard photos (calibrate_pinhole)"),
+        Parameter("images", str, "", path=True, help="folder or glob of chessboard photos (calibrate_pinhole)"),
         Parameter("pattern", str, "", help="chessboard inner corners COLSxROWS, e.g. 10x7"),
         Parameter("square", float, 0.0, unit="mm", bounds=(0.0, None),
                   help="chessboard square side (required with images: it sets the scale)"),
@@ -50,8 +50,7 @@ class Calibrate(Step):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
-        values, problems = cls.parameters.problems(scalar, where, file)
+        values, problems = cls.scalars(table, where, file)
         if problems:
             return values, problems
         algorithm, problems = _lookup(registry, values["algorithm"], f"{where}.algorithm", file)
@@ -112,8 +111,7 @@ class Reconstruct(Step):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        scalar = {k: v for k, v in table.items() if k not in ("inputs", "parameters")}
-        values, problems = cls.parameters.problems(scalar, where, file)
+        values, problems = cls.scalars(table, where, file)
         if problems:
             return values, problems
         algorithm, problems = _lookup(registry, f"reconstruct_{values['method']}", f"{where}.method", file)

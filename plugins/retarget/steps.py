@@ -43,21 +43,16 @@ class RetargetStep(Step):
         Parameter("scale", float, 1.0, bounds=(0.0, None), help="mm per file length unit (CMU BVH: 56.444)"),
         Parameter("skip", int, 0, bounds=(0, None), help="leading frames to drop"),
         Parameter("name", str, "", help="group under /retarget (default: the file's stem)"),
-        Parameter("csv", str, "", help="also write the frames to this CSV file (relative to the recipe)"),
+        Parameter("csv", str, "", path=True, help="also write the frames to this CSV file"),
         *CHAIN_PARAMETERS,
     )
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.parameters.problems(table, where, file)
+        values, problems = cls.scalars(table, where, file)
         if problems:
             return values, problems
-        here = Path(file).resolve().parent if file else Path.cwd()
-        if not values["file"].is_absolute():
-            values["file"] = here / values["file"]
-        if values["csv"] and not Path(values["csv"]).is_absolute():
-            values["csv"] = str(here / values["csv"])
         if not values["file"].is_file():
             problems.append(Problem(f"{where}.file", f"no such motion file {str(values['file'])!r}", file))
         try:
@@ -74,12 +69,13 @@ class RetargetStep(Step):
         stats, memory = stream_motion(motion, chain, values, sinks)
         name = values["name"] or Path(values["file"]).stem
         out = memory.arrays()
+        s = stats.summary()
+        summary = (f"{motion.source}: {s['published']} frames, mean f {float(np.nanmean(out['f'])):.4g} mm², "
+                   f"compute {s['latency_mean_ms']:.2f} ms mean, {s['missed_deadlines']} missed deadlines "
+                   f"at {motion.rate:g} Hz")
+        # the description is what `session info` and the summary of `mirrorlab run` show of the group
         session.write_group(f"retarget/{name}", {"input_joints": motion.joints, "input_time": motion.time, **out},
                             {"source": motion.source, "joints": ",".join(motion.names), "lengths": values["lengths"],
                              "axes": values["axes"], "method": values["method"], "rate_hz": motion.rate,
-                             "units": "joints mm, q rad, f mm2, residuals mm, time s", **stats.summary()})
-        s = stats.summary()
-        session.events.emit("info", "retarget", "retargeted",
-                            f"{motion.source}: {s['published']} frames, mean f {float(np.nanmean(out['f'])):.4g} mm², "
-                            f"compute {s['latency_mean_ms']:.2f} ms mean, {s['missed_deadlines']} missed deadlines "
-                            f"at {motion.rate:g} Hz")
+                             "units": "joints mm, q rad, f mm2, residuals mm, time s", "description": summary, **s})
+        session.events.emit("info", "retarget", "retargeted", summary)

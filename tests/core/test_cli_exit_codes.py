@@ -39,6 +39,9 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     cv2.imwrite(str(d / "blank" / "white.png"), np.full((120, 160), 255, np.uint8))
     (d / "failing.toml").write_text(ACME_FAILING_RECIPE)
+    # a recording of 512-value frames (more columns than CSV takes) for `session export`
+    assert run_cli("record", "film_scanner", "--simulate", "--fast", "--seconds", "0", "--lines", "16",
+                   "--scene-frames", "2", "--out", str(d / "frames.h5"), "--no-progress").returncode == 0
     (d / "filter.toml").write_text('[[steps]]\naction = "run"\nalgorithm = "filter"\n'
                                    'inputs = { time = "/t10", values = "/v10" }\n')
     return d
@@ -69,6 +72,10 @@ CASES = [
     ("session export", ["session", "export", f"{D}/s.h5", "/t10", "--format", "npy"], 2),  # npy needs --out
     ("session export", ["session", "export", f"{D}/missing.h5", "/t10"], 2),
     ("session export", ["session", "export", f"{D}/garbage.h5", "/t10"], 1),
+    ("session export", ["session", "export", f"{D}/s.h5", "/no_such_dataset"], 2),  # as analyze's missing dataset
+    ("session export", ["session", "export", f"{D}/frames.h5", "dev/no_such_stream"], 2),
+    ("session export", ["session", "export", f"{D}/frames.h5", "dev/frames"], 2),  # too wide for CSV: --format npy
+    ("session export", ["session", "export", f"{D}/s.h5", "/t10", "--format", "npy", "--out", f"{D}/t10.csv"], 2),
     ("run", ["run", str(REPO / "sessions" / "scan_film.toml"), "--check"], 0),
     ("run", ["run", f"{D}/missing.toml"], 2),
     ("run", ["run", f"{D}/s.h5"], 2),  # not a TOML recipe
@@ -90,7 +97,7 @@ CASES = [
                  "--method", "nope"], 2),
     ("analyze", ["analyze", "filter", f"{D}/missing.h5", "--input", "time=/t10", "--input", "values=/v10"], 2),
     ("analyze", ["analyze", "filter", f"{D}/s.h5", "--input", "time=/t3", "--input", "values=/v3"], 1),
-    ("record", ["record", "film_scanner", "--simulate", "--fast", "--seconds", "0.3", "--lines", "16",
+    ("record", ["record", "film_scanner", "--simulate", "--fast", "--seconds", "0", "--scene-frames", "2", "--lines", "16",
                 "--out", f"{D}/rec.h5", "--no-progress"], 0),
     ("record", ["record", "film_scanner", "--lines", "many", "--out", f"{D}/rec2.h5"], 2),
     ("record", ["record", "film_scanner", "--port", f"{D}/no-such-port", "--out", f"{D}/rec3.h5",

@@ -95,7 +95,8 @@ def test_run_help_names_the_real_default_output_folder(tmp_path) -> None:
     recipe = tmp_path / "recipes" / "scan.toml"
     recipe.parent.mkdir()
     recipe.write_text((REPO / "sessions" / "scan_film.toml").read_text())
-    proc = run_cli("run", str(recipe), "--set", "steps.0.seconds=0.2", "--set", "instruments.scanner.settings.lines=16",
+    proc = run_cli("run", str(recipe), "--set", "instruments.scanner.settings.scene_frames=2",
+                   "--set", "instruments.scanner.settings.lines=16",
                    "--no-progress", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert len(list((recipe.parent / "out").glob("scan-*.h5"))) == 1 and not (tmp_path / "sessions").exists()

@@ -106,3 +106,43 @@ def test_export_names_columns_with_units(scanned: Path, tmp_path: Path, acme_sit
     assert header == ["pairs"]
     scalar = run_cli("session", "export", str(scanned), "/calibration/cam/rms")
     assert scalar.returncode == 0 and scalar.stdout.splitlines() == ["rms", "0.4"], scalar.stderr
+
+
+def test_export_writes_the_file_it_names_and_says_what_it_wrote(scanned: Path, tmp_path: Path) -> None:
+    """``--format npy`` writes exactly ``--out`` and reports it (it wrote ``fr.csv.npy`` and said
+    ``wrote fr.csv``); a name numpy would change is refused before anything is written (exit 2);
+    a CSV file gets a one-line summary too (CSV on stdout stays bare)."""
+    refused = run_cli("session", "export", str(scanned), "cam/frame_index", "--format", "npy",
+                      "--out", str(tmp_path / "fr.csv"))
+    assert refused.returncode == 2
+    assert refused.stderr.strip() == (f"mirrorlab: error: --out: {tmp_path / 'fr.csv'} does not fit --format npy: "
+                                      "name the file fr.npy")
+    assert list(tmp_path.iterdir()) == []
+    npy = run_cli("session", "export", str(scanned), "cam/frame_index", "--format", "npy", "--out", str(tmp_path / "fr.npy"))
+    assert npy.returncode == 0, npy.stderr
+    with Session.open(scanned) as s:
+        _, expected = s.stream("cam", "frame_index")
+    assert npy.stdout.strip() == f"wrote {tmp_path / 'fr.npy'}: {len(expected)} samples of scalar int64"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fr.npy"]
+    assert np.array_equal(np.load(tmp_path / "fr.npy"), expected)
+    assert run_cli("session", "export", str(scanned), "cam/frame_index", "--out", str(tmp_path / "x.npy")).returncode == 2
+    table = run_cli("session", "export", str(scanned), "cam/frame_index", "--out", str(tmp_path / "fr.csv"))
+    assert table.returncode == 0, table.stderr
+    assert table.stdout.strip() == f"wrote {tmp_path / 'fr.csv'}: {len(expected)} rows of 2 columns"
+    assert len((tmp_path / "fr.csv").read_text().splitlines()) == len(expected) + 1
+
+
+def test_export_a_controller_stream(tmp_path: Path) -> None:
+    """A controller's stream exports like an instrument's (it failed with a KeyError)."""
+    from tests.support import REPO
+
+    out = tmp_path / "loop.h5"
+    proc = run_cli("run", str(REPO / "sessions" / "follow_loop.toml"), "--out", str(out), "--set", "steps.0.seconds=0.1",
+                   "--set", "steps.1.seconds=0.5", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    exported = run_cli("session", "export", str(out), "loop/latency")
+    assert exported.returncode == 0, exported.stderr
+    rows = list(csv.reader(io.StringIO(exported.stdout)))
+    with Session.open(out) as s:
+        times, _ = s.stream("loop", "latency")
+    assert rows[0] == ["time_s", "latency_s"] and len(rows) == len(times) + 1 > 1

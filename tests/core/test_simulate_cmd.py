@@ -41,3 +41,18 @@ def test_a_served_simulator_answers_the_driver_until_interrupted(tmp_path: Path,
         out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
     assert "serving the actuator simulator (ACTU, seed 3, fast clock)" in err and "stopped" in err
+
+
+def test_a_simulator_served_for_a_time_says_when_it_stops() -> None:
+    """With --for the start message says when it stops (it said "stop with Ctrl-C"); without, Ctrl-C."""
+    from tests.support import run_cli
+
+    timed = run_cli("simulate", "actuator", "--tcp", "0", "--for", "0.2")
+    assert timed.returncode == 0, timed.stderr
+    assert timed.stderr.strip().endswith("stops after 0.2 s (or Ctrl-C)"), timed.stderr
+    proc, _ = serve("actuator", "--tcp", "0")
+    assert proc.stderr is not None
+    started = proc.stderr.readline()
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=30)
+    assert started.strip().endswith("real clock); stop with Ctrl-C"), started

@@ -146,7 +146,7 @@ def test_figures_written(short_run: tuple[Path, str]) -> None:
 def test_a_second_analysis_stops_before_appending_anything(short_run: tuple[Path, str], tmp_path: Path) -> None:
     """The analysis recipe again on the demo's session: its calibration group is taken, so it stops at
     once (exit 2) naming the key and what to do, and the file gains nothing (it used to stop at the
-    calibration after two new runs)."""
+    calibration after two new runs); in one error line (it printed two)."""
     import shutil
 
     out = shutil.copyfile(short_run[0], tmp_path / "again.h5")
@@ -160,8 +160,10 @@ def test_a_second_analysis_stops_before_appending_anything(short_run: tuple[Path
     before = runs()
     proc = run_cli("run", str(ANALYSIS), "--session", str(out), "--no-progress")
     assert proc.returncode == 2, proc.stderr + proc.stdout
-    assert "steps.3.camera: /calibration/cam already exists" in proc.stderr
-    assert "fresh copy of the recording" in proc.stderr
+    (line,) = proc.stderr.splitlines()  # one error line: what is taken and what to do
+    assert line.startswith(f"mirrorlab: error: {ANALYSIS}: again.h5 holds the results of an earlier analysis "
+                           "(steps.3.camera: /calibration/cam already exists"), line
+    assert "fresh copy of the recording" in line
     assert runs() == before
     with h5py.File(out, "r") as f:
         assert f.attrs["status"] == "closed"

@@ -38,3 +38,14 @@ def test_scan_film_records_frames(tmp_path: Path) -> None:
             assert cv2.connectedComponents(frame)[0] - 1 == 4
         assert f["instruments/scanner"].attrs["plugin"] == "film_scanner"
         assert f.attrs["status"] == "closed"
+
+
+def test_scan_film_runs_quietly(tmp_path: Path) -> None:
+    """As shipped, the recipe records the film to its end and says nothing on stderr (it recorded for
+    6 s and warned on every run that the 1.4 s film had ended first)."""
+    out = tmp_path / "scan.h5"
+    proc = run_cli("run", str(REPO / "sessions" / "scan_film.toml"), "--out", str(out), "--no-progress",
+                   "--set", "instruments.scanner.settings.scene_frames=3")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    with h5py.File(out, "r") as f:
+        assert f["instruments/scanner/frame_index/data"][()].tolist() == [0, 1, 2]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import h5py
@@ -119,12 +120,14 @@ def test_derivatives_on_a_session_and_on_a_trc(session, tmp_path):
     assert proc.returncode == 0, proc.stderr
     s = json.loads(proc.stdout)
     assert list(s["markers"]) == ["Daphnee:STER", "Daphnee:EPICl"] and s["runs"][0].endswith(": ok")
-    assert 0.5 < s["markers"]["Daphnee:EPICl"]["max_speed_m_s"] < 3.0    # plausibility bracket for a wrist marker
+    assert 500 < s["markers"]["Daphnee:EPICl"]["max_speed_mm_s"] < 3000  # mm/s: plausibility bracket for a wrist marker
     assert _png(tmp_path / "derivatives.png")
     trc = run_cli("kinematics", "derivatives", str(SHARED_DATA / "mocap" / "markers.trc"), "--markers", "ASISl",
                   "--no-progress")
     assert trc.returncode == 0, trc.stderr
     assert "ASISl" in trc.stdout and "93 frames at 100 Hz" in trc.stdout
+    assert "max |v| mm/s" in trc.stdout and "max |a| mm/s²" in trc.stdout, trc.stdout
+    assert not re.search(r"(?<!m)m/s", trc.stdout), trc.stdout  # no metres: mm, as everywhere
 
 
 def test_rigid_tumbling_box_angular_momentum(tmp_path):

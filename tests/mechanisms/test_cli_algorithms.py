@@ -97,7 +97,7 @@ def test_cli_four_bar_from_npy_and_session(tmp_path: Path) -> None:
     with Session.create(tmp_path / "s.h5") as s:
         s.write_group("markers/fb", {"points": points})
     proc = run_cli("mechanisms", "four-bar", str(tmp_path / "s.h5"), "--dataset", "/markers/fb/points",
-                   "--method", "thesis")
+                   "--method", "thesis", "--thesis")
     assert proc.returncode == 0 and "Table 5.1" in proc.stdout, proc.stderr
     proc = run_cli("mechanisms", "four-bar", str(tmp_path / "s.h5"))
     assert proc.returncode == 2 and "--dataset" in proc.stderr
@@ -105,6 +105,35 @@ def test_cli_four_bar_from_npy_and_session(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "no such file" in proc.stderr
     proc = run_cli("mechanisms", "four-bar", str(tmp_path / "m.npy"), "--method", "magic")
     assert proc.returncode == 2
+
+
+def test_cli_four_bar_compares_only_with_lengths_it_is_given(tmp_path: Path) -> None:
+    """Another four-bar (the thesis's at twice the size) is not compared with the thesis's lengths
+    unless asked: alone its lengths are printed without errors or Table 5.1; ``--reference`` gives
+    the lengths to compare with; ``--thesis`` names the thesis's four-bar. Headers are not cut."""
+    points, _ = four_bar_markers(30, noise="uniform", seed=6)
+    np.save(tmp_path / "x2.npy", 2 * points)
+    alone = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"))
+    assert alone.returncode == 0, alone.stderr
+    assert "%" not in alone.stdout and "Table 5.1" not in alone.stdout and "true" not in alone.stdout, alone.stdout
+    title, head, *rows = alone.stdout.splitlines()[:6]
+    assert head.split() == ["link", "least_squares"], alone.stdout
+    assert [r.split()[0] for r in rows] == list(THESIS_FOUR_BAR)
+    for row in rows:  # the lengths alone, twice the thesis's
+        assert float(row.split()[1]) == pytest.approx(2 * THESIS_FOUR_BAR[row.split()[0]], rel=0.01)
+    doubled = ",".join(str(2 * v) for v in THESIS_FOUR_BAR.values())
+    given = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", doubled, "--json")
+    assert given.returncode == 0, given.stderr
+    res = json.loads(given.stdout)
+    assert res["reference_mm"] == {k: 2 * v for k, v in THESIS_FOUR_BAR.items()}
+    assert all(abs(e) < 1 for e in res["errors_percent"].values()), res["errors_percent"]
+    text = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", doubled, "--method", "thesis")
+    assert text.stdout.splitlines()[1].split() == ["link", "reference", "thesis", "err"], text.stdout
+    thesis = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--thesis")
+    assert thesis.stdout.splitlines()[1].split() == ["link", "thesis", "mm", "Table", "5.1", "err", "least_squares",
+                                                     "err"], thesis.stdout
+    bad = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", "460,200,440")
+    assert bad.returncode == 2 and "--reference: expected 4 values" in bad.stderr, bad.stderr
 
 
 def test_cli_optimal_wall() -> None:

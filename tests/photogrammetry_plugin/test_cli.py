@@ -230,6 +230,17 @@ def test_chessboard_square_is_required(tmp_path: Path) -> None:
     assert "--square: required with --images: the chessboard square side in mm" in r.stderr
 
 
+def test_calibrate_names_every_missing_option_at_once() -> None:
+    """All that is missing in one run, one line each (it named one per run: --json, then --pattern, then --square)."""
+    r = run_cli("calibrate", "--images", str(CHESS))
+    assert r.returncode == 2
+    assert [line.split(": ")[2] for line in r.stderr.splitlines()] == ["calibrate", "--pattern", "--square"], r.stderr
+    assert "--session FILE and/or --json" in r.stderr
+    r = run_cli("calibrate", "--points", "grid.csv")
+    assert r.returncode == 2
+    assert [line.split(": ")[2] for line in r.stderr.splitlines()] == ["calibrate", "--camera-center"], r.stderr
+
+
 def test_missing_mirror_point_names_the_option(tmp_path: Path) -> None:
     cam = pinhole_camera()
     flat = markers(2, 2, seed=3).reshape(-1, 3)

@@ -118,3 +118,29 @@ def test_bad_settings_name_the_key(tmp_path: Path, settings: dict, key: str, rea
     with Session.create(tmp_path / "bad.h5") as s, pytest.raises(ValidationError, match=reason) as err:
         s.add_controller("arm4", "retarget", settings=settings, inputs={"input": "mocap/joints"})
     assert err.value.problems[0].key == f"controllers.arm4.settings.{key}"
+
+
+def test_live_recipe_warns_with_the_count_of_frames_it_could_not_compute(tmp_path: Path) -> None:
+    """A filter that cannot keep up with its input (a 30-angle arm at 1000 input frames/s: about 100
+    times the compute rate of this machine) leaves frames without output; the run says how many,
+    once, at the end (it said nothing). At a rate it keeps up with, the run is quiet."""
+    import re
+
+    from tests.support import REPO, run_cli
+
+    recipe = str(REPO / "sessions" / "retarget_live.toml")
+    no_actuator = ["--set", 'controllers.arm4.settings.actuate=""', "--set", "controllers.arm4.instruments={}"]
+    arm30 = ["--set", f'controllers.arm4.settings.lengths="{",".join(["52.5"] * 10)}"',
+             "--set", f'controllers.arm4.settings.axes="{",".join(["zyx"] * 10)}"']
+    out = tmp_path / "behind.h5"
+    proc = run_cli("run", recipe, "--out", str(out), "--no-progress", "--set", 'instruments.mocap.settings.rate="1000 Hz"',
+                   "--set", "steps.0.seconds=0.5", *no_actuator, *arm30)
+    assert proc.returncode == 0, proc.stderr
+    warnings = re.findall(r"controller 'arm4' fell behind its input: (\d+) input samples got no output", proc.stderr)
+    assert len(warnings) == 1, proc.stderr
+    with Session.open(out) as s:
+        inputs, outputs = len(s.stream("mocap", "joints").times), len(s.stream("arm4", "q").times)
+    assert 0 < int(warnings[0]) <= inputs - outputs, (warnings, inputs, outputs)
+    quiet = run_cli("run", recipe, "--out", str(tmp_path / "quiet.h5"), "--no-progress",
+                    "--set", 'instruments.mocap.settings.rate="20 Hz"', "--set", "steps.0.seconds=0.5", *no_actuator)
+    assert quiet.returncode == 0 and "fell behind" not in quiet.stderr, quiet.stderr
