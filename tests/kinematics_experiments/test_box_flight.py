@@ -14,6 +14,7 @@ from mirrorlab.instruments.virtual_lab import make_lab
 from mirrorlab.instruments.virtual_lab.box_flight import THESIS_FILM_SIGMA_MM, thesis_box_lab
 from mirrorlab.plugins.kinematics import kabsch
 from mirrorlab.plugins.kinematics.synthetic import box_inertia, box_vertices
+from mirrorlab.plugins.photogrammetry import PinholeCamera
 from mirrorlab.plugins.photogrammetry.mirror import triangulate_mirror
 from scipy.spatial.transform import Rotation
 from scipy.stats import spearmanr
@@ -38,7 +39,8 @@ def test_noiseless_200fps_through_visibility_and_mirror_keeps_H_constant():
     # vertices exact where seen in both views (rounding of the ray intersection: distances along the
     # rays up to a, amplified by 1 / sin of the rays' angle); visibility really limits the fit
     lab = thesis_box_lab()
-    cam, mirror = lab.camera, lab.mirrors[0]
+    c, mirror = lab.camera, lab.mirrors[0]
+    cam = PinholeCamera(c.K, c.dist, c.R, c.t, c.image_size)  # the plugin's model of the lab's camera
     tri = triangulate_mirror(cam.camera_center, mirror.centre, mirror.normal, cam.rays(f.truth.real_xy[used]),
                              cam.rays(f.truth.virtual_xy[:, 0][used]), on_degenerate="flag")
     tol = roundoff(cond=1 / np.sin(tri.angle).min(), scale=max(tri.a1.max(), tri.a2.max()), ops=20)

@@ -88,13 +88,13 @@ def test_derivatives_refuse_the_shared_label_and_pick_by_number(trial: Path) -> 
     proc = run_cli("kinematics", "derivatives", str(trial), "--markers", "RKNE", "--no-progress")
     assert proc.returncode == 2 and proc.stderr.splitlines()[-1] == f"mirrorlab: error: --markers: {AMBIGUOUS}"
     picked = _json(run_cli("kinematics", "derivatives", str(trial), "--markers", "RKNE#4", "--json", "--no-progress"))
-    # the moving one: 0.5 m/s (a smoothing spline of a straight line at constant speed is exact up to its
+    # the moving one: 0.5 m/s = 500 mm/s (a smoothing spline of a straight line at constant speed is exact up to its
     # regularisation; 1e-6 relative is far looser than that and far tighter than telling 0.5 from 0)
     assert list(picked["markers"]) == ["RKNE#4"]
-    assert picked["markers"]["RKNE#4"]["max_speed_m_s"] == pytest.approx(SPEED, rel=1e-6)
+    assert picked["markers"]["RKNE#4"]["max_speed_mm_s"] == pytest.approx(1000 * SPEED, rel=1e-6)
     every = _json(run_cli("kinematics", "derivatives", str(trial), "--json", "--no-progress"))
     assert list(every["markers"]) == ["RKNE#1", "LKNE", "RANK", "RKNE#4", "LANK"]  # no name hides another
-    assert every["markers"]["RKNE#1"]["max_speed_m_s"] < 1e-6 * SPEED
+    assert every["markers"]["RKNE#1"]["max_speed_mm_s"] < 1e-3 * SPEED
     assert every["markers"]["RKNE#4"] == picked["markers"]["RKNE#4"]
 
 
@@ -118,7 +118,7 @@ def test_a_session_keeps_the_labels_and_refuses_the_shared_one(trial: Path, tmp_
     assert proc.returncode == 2 and AMBIGUOUS in proc.stderr
     picked = _json(run_cli("kinematics", "derivatives", str(session), "--markers", "RKNE#4", "--json",
                            "--no-progress"))
-    assert picked["markers"]["RKNE#4"]["max_speed_m_s"] == pytest.approx(SPEED, rel=1e-6)
+    assert picked["markers"]["RKNE#4"]["max_speed_mm_s"] == pytest.approx(1000 * SPEED, rel=1e-6)
     csv, c3d = tmp_path / "out.csv", tmp_path / "out.c3d"
     for out in (csv, c3d):
         assert run_cli("kinematics", "export", str(session), "trial", "--out", str(out)).returncode == 0

@@ -132,8 +132,13 @@ def test_cli_four_bar_compares_only_with_lengths_it_is_given(tmp_path: Path) -> 
     thesis = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--thesis")
     assert thesis.stdout.splitlines()[1].split() == ["link", "thesis", "mm", "Table", "5.1", "err", "least_squares",
                                                      "err"], thesis.stdout
+    in_cm = ", ".join(str(v / 5) for v in THESIS_FOUR_BAR.values())  # 2 x mm = 0.2 x cm
+    metric = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", f"[{in_cm}] cm", "--json")
+    assert json.loads(metric.stdout)["reference_mm"] == pytest.approx(res["reference_mm"]), metric.stderr
     bad = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", "460,200,440")
     assert bad.returncode == 2 and "--reference: expected 4 values" in bad.stderr, bad.stderr
+    wrong = run_cli("mechanisms", "four-bar", str(tmp_path / "x2.npy"), "--reference", "[1, 2, 3, 4] s")
+    assert wrong.returncode == 2 and "--reference" in wrong.stderr.splitlines()[-1], wrong.stderr
 
 
 def test_cli_optimal_wall() -> None:

@@ -176,4 +176,5 @@ def test_every_hand_written_length_option_is_tested_here_or_in_kinematics_plugin
     # options generated from typed parameters (add_parameter_options) convert units by construction
     assert _length_options() == {("calibrate", "--square"), ("calibrate", "--camera-center"),
                                  ("reconstruct", "--mirror-point"), ("reconstruct", "--lengths"),
-                                 ("reconstruct", "--start"), ("retarget run", "--scale")}
+                                 ("reconstruct", "--start"), ("retarget run", "--scale"),
+                                 ("mechanisms four-bar", "--reference")}  # tests/mechanisms/test_cli_algorithms.py
