@@ -7,8 +7,10 @@ Public API::
 Plugins import what they need from here (and instrument drivers from ``mirrorlab.core.devices``),
 never from the core's internal modules: besides the classes above, the recipe ``Step`` base and
 its helpers, ``execute`` (run an algorithm without a session), the CLI helpers of plugin commands
-(``add_parameter_options``, ``parameter_type``, ``collected``, ``plain``, ``existing_path``,
-``add_overwrite_option``, ``progress_bar``), ``SessionClock``, ``EventBus`` and the file ``schema``.
+(``Subcommands``, what ``mirrorlab_add_cli_commands`` receives, ``add_parameter_options``,
+``parameter_type``, ``collected``, ``plain``, ``existing_path``, ``add_overwrite_option``,
+``progress_bar``), ``ScreenEntry`` (a console screen, see also ``mirrorlab.core.tui``),
+``SessionClock``, ``EventBus`` and the file ``schema``.
 
 Names other than the errors are imported on first use (PEP 562), so that light entry points such
 as ``mirrorlab --version`` (``mirrorlab.core.cli``) do not pay for numpy and h5py.
@@ -44,6 +46,7 @@ from .errors import (
 
 if TYPE_CHECKING:
     from .algorithms import Algorithm, Port, ResultRef, RunContext, execute
+    from .cli.commands import Subcommands
     from .cli.options import add_parameter_options, collected, existing_path, parameter_type, plain
     from .cli.outputs import add_overwrite_option
     from .cli.progress import progress_bar
@@ -58,6 +61,7 @@ if TYPE_CHECKING:
     from .steps import ALGORITHM_TABLES, Step, algorithm_tables
     from .store import schema
     from .streams import Block, StreamSpec
+    from .tui.screens import ScreenEntry
 
 #: Public name -> the sub-module that defines it (imported when the name is first used).
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
@@ -68,15 +72,16 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
          "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
          "parameter_type": "cli.options", "plain": "cli.options", "add_overwrite_option": "cli.outputs",
-         "progress_bar": "cli.progress", "schema": "store.schema"}
+         "progress_bar": "cli.progress", "schema": "store.schema", "Subcommands": "cli.commands",
+         "ScreenEntry": "tui.screens"}
 
 __all__ = [
     "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "Cancelled", "ConfigurationError",
     "Controller", "ControllerContext", "DamagedFileError", "DataError", "DeviceDisconnected", "DeviceError",
     "DeviceReplyError", "DeviceTimeout", "DuplicateNameError", "EventBus", "MirrorlabError", "MirrorlabWarning",
     "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",
-    "ResultRef", "RunContext", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
-    "StoppedOnRequest", "StreamSpec", "ValidationError", "add_overwrite_option", "add_parameter_options",
+    "ResultRef", "RunContext", "ScreenEntry", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
+    "StoppedOnRequest", "StreamSpec", "Subcommands", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
     "progress_bar", "schema",
 ]

@@ -84,6 +84,15 @@ class RunContext:
             raise Cancelled("stopped on request")
 
 
+#: Roles an algorithm may declare (:attr:`Algorithm.roles`), for screens and tools that look an
+#: algorithm up by what it does rather than by its name: role -> (inputs, outputs) it must have.
+#: ``marker_detector``: input ``frames`` (F, H, W) grey levels, output ``xy`` (F, K, 2) marker
+#: centres, px, x right, y down, NaN-padded (the console's camera view draws them).
+ROLES: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "marker_detector": (("frames",), ("xy",)),
+}
+
+
 class Algorithm(ABC):
     """Base class of algorithm plugins.
 
@@ -103,6 +112,9 @@ class Algorithm(ABC):
     #: Padding of outputs that are ragged along their second axis (e.g. markers per frame) when
     #: chunks are merged: output name -> fill value; floating outputs not listed are NaN-padded.
     frame_fill: ClassVar[Mapping[str, Any]] = {}
+    #: What the algorithm is, among :data:`ROLES` (e.g. ``("marker_detector",)``): the registry
+    #: checks that it has each role's ports.
+    roles: ClassVar[tuple[str, ...]] = ()
 
     @abstractmethod
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any],
@@ -133,6 +145,19 @@ class Algorithm(ABC):
             "inputs": [p.describe() for p in cls.inputs],
             "outputs": [p.describe() for p in cls.outputs],
         }
+
+
+def role_problem(cls: type[Algorithm]) -> str:
+    """Why ``cls`` does not fill the roles it declares (an unknown role, a missing port), or ``""``."""
+    for role in cls.roles:
+        if role not in ROLES:
+            return f"algorithm {cls.name!r} declares the unknown role {role!r}; roles: {', '.join(sorted(ROLES))}"
+        inputs, outputs = ROLES[role]
+        missing = [f"input {n!r}" for n in inputs if n not in {p.name for p in cls.inputs}]
+        missing += [f"output {n!r}" for n in outputs if n not in {p.name for p in cls.outputs}]
+        if missing:
+            return f"algorithm {cls.name!r} declares the role {role!r} but has no {' and no '.join(missing)}"
+    return ""
 
 
 @dataclass

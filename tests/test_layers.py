@@ -22,11 +22,8 @@ from tests.support import REPO, source_copy
 FORBIDDEN = {"core": ("mirrorlab.plugins", "mirrorlab.instruments"),
              "instruments": ("mirrorlab.plugins",),
              "plugins": ("mirrorlab.instruments",)}
-#: Files allowed to name a forbidden package for now, each with the reason.
-ALLOWED = {
-    # removed by the hooks branch (CLI commands through the hook, not the plugins' name table)
-    "core/cli/commands.py": "mirrorlab.plugins",
-}
+#: Files allowed to name a forbidden package, each with the reason (none: keep it that way).
+ALLOWED: dict[str, str] = {}
 
 
 def _docstring_nodes(tree: ast.AST) -> set[int]:

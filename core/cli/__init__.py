@@ -3,9 +3,9 @@
 Conventions: exit code 0 ok, 1 runtime failure, 2 usage or validation error (:data:`EXIT_CODES`);
 an error is printed once, as one line on stderr (``--debug``, anywhere on the line, shows the
 traceback); commands that print information take ``--json``; long work shows a progress bar on
-stderr. Start-up is lazy: the sub-command table (:mod:`.commands`) lists the built-in commands
-without importing them, and only the command being run is imported. Plugins add commands
-through ``mirrorlab_add_cli_commands``.
+stderr. Start-up is lazy: the core's command table and the plugins' declarations
+(:mod:`.commands`) list the commands without importing them, and only the command being run is
+imported. Plugins add commands through ``mirrorlab_add_cli_commands``.
 """
 
 from __future__ import annotations
@@ -52,30 +52,29 @@ def _command_name(argv: Sequence[str]) -> str | None:
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     """The ``mirrorlab`` parser: everything (``argv=None``) or only what parsing ``argv`` needs.
 
-    With ``argv`` the built-in commands other than the one named in it are help-only stubs (never
-    parsed), and third-party plugins are imported only for the top-level help or a command that is
-    not built in.
+    With ``argv`` the commands other than the one named in it are help-only stubs (never parsed):
+    a core command imports no plugin, a plugin's command only the plugin that declares it, and
+    plugins that declare no commands are imported only for the top-level help or a command that no
+    one declares (:func:`.commands.add_plugin_commands`).
     """
     parser = _Parser(prog="mirrorlab", description="Motion-measurement instruments, sessions and analysis.",
                      epilog=EXIT_CODES, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"mirrorlab {mirrorlab_version()}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks and debug logging")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    table = commands.builtin_commands()
     wanted = None if argv is None else _command_name(argv)
-    load = {c.target for c in table if argv is None or c.name == wanted}
-    for command in table:
+    load = {c.target for c in commands.CORE_COMMANDS if argv is None or c.name == wanted}
+    for command in commands.CORE_COMMANDS:
         if command.name in sub.choices:  # added with a sibling from the same module
             continue
         if command.target in load:
             command.add(sub, argv)
         else:
             sub.add_parser(command.name, help=command.help, add_help=False)
-    builtin = {c.name for c in table}
-    if argv is None or (wanted is None and "--version" not in argv) or (wanted is not None and wanted not in builtin):
+    if argv is None or (wanted is None and "--version" not in argv) or (wanted is not None and wanted not in sub.choices):
         from ..registry import Registry
 
-        for message in Registry(builtins=False).notify("mirrorlab_add_cli_commands", subparsers=sub):
+        for message in commands.add_plugin_commands(sub, Registry(), argv, wanted):
             print(f"mirrorlab: warning: {message}", file=sys.stderr)
     return parser
 

@@ -3,16 +3,15 @@
 The dashboard is the app's main screen. A timer polls the console at :data:`POLL_HZ` (a snapshot
 and the live subscriptions, never a device or the file); actions that wait on devices or the
 disk run in worker threads, and their errors become dialogs that say what to do. Every key's
-action is also in the command palette (ctrl+p).
+action is also in the command palette (ctrl+p). The screens it opens are the core's
+(:data:`~.screens.SCREENS`) and those the session's plugins register (``mirrorlab_register_screens``).
 """
 
 from __future__ import annotations
 
 import asyncio
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from functools import partial
-from importlib import import_module
 
 from rich.text import Text
 from textual.app import App, ComposeResult, SystemCommand
@@ -24,9 +23,11 @@ from textual.widgets import DataTable, Header, RichLog, Static
 
 from ..errors import MirrorlabError
 from ..events import Event
+from ..registry import Registry
 from ..snapshot import InstrumentSnapshot, SessionSnapshot
 from .dialogs import ErrorDialog, FaultDialog, HelpScreen
 from .model import Console
+from .screens import SCREENS, ScreenEntry
 from .widgets import KeysFooter
 
 #: Dashboard refreshes per second.
@@ -45,39 +46,26 @@ ADVICE = {
     "preview": "Check the instrument named above (cable, power, port), then press p again.",
     "stop": "Press s again; if an instrument does not stop, power-cycle it before using it again.",
 }
-
-
-@dataclass(frozen=True)
-class ScreenEntry:
-    """A screen the dashboard opens: its key, its command-palette title and help, and where its
-    class lives (``module:Class`` relative to this package, imported on first use). A screen class
-    may define ``unavailable(model) -> str``: why it cannot open now (``""``: it can)."""
-
-    key: str
-    title: str
-    help: str
-    target: str
-
-    def load(self) -> type[Screen]:
-        module, _, name = self.target.partition(":")
-        return getattr(import_module(module, __package__), name)
-
-
-#: Every screen the dashboard opens, by key and from the command palette (add new screens here).
-SCREENS: list[ScreenEntry] = [
-    ScreenEntry("t", "Steps", "the recipe's steps: run from one, see progress, cancel", ".steps:StepsScreen"),
-    ScreenEntry("a", "Analysis", "run an algorithm: its form, progress, cancel, result",
-                ".analysis:AnalysisScreen"),
-    ScreenEntry("b", "Browse", "the session file: tree, previews, attributes, provenance",
-                ".browser:BrowserScreen"),
-    ScreenEntry("g", "Plots", "trajectories, velocities, joint angles, tracker angles", ".plots:PlotsScreen"),
-    ScreenEntry("c", "Camera", "the newest frame, detected markers, mirror pairs", ".camera:CameraScreen"),
-    ScreenEntry("v", "Virtual chain", "turn a virtual input chain's joints, see it retargeted", ".chain:ChainScreen"),
-    ScreenEntry("m", "Dexterity task", "sweep the least area moving a segment, B on the x axis",
-                ".dexterity:DexterityScreen"),
-]
 #: The two built-in themes the ``d`` key switches between.
 THEMES = ("textual-dark", "textual-light")
+
+
+def plugin_screens(registry: Registry) -> tuple[list[ScreenEntry], list[str]]:
+    """The screens the plugins register, by name, and why any could not be had (a broken plugin, a
+    name two plugins register), one line each."""
+    entries, problems = [], []
+    for name in registry.names("screen"):
+        try:
+            entries.append(registry.get("screen", name))
+        except MirrorlabError as exc:
+            problems.append(f"screen {name!r}: {exc}")
+    return entries, problems
+
+
+def bound_keys(*classes: type) -> dict[str, str]:
+    """Every key the ``BINDINGS`` of ``classes`` and their bases bind -> its description (or action)."""
+    return {b.key: b.description or b.action for cls in classes for base in cls.__mro__
+            for b in Binding.make_bindings(getattr(base, "BINDINGS", ()))}
 
 
 def human_bytes(n: int) -> str:
@@ -105,7 +93,7 @@ class MirrorlabApp(App[int]):
         Binding("p", "preview", "Preview"),
         Binding("r", "record", "Record"),
         Binding("s", "stop", "Stop"),
-        *(Binding(e.key, f"open_screen({e.title!r})", e.title) for e in SCREENS),
+        *(Binding(e.key, f"open_screen({e.name!r})", e.title) for e in SCREENS),  # the plugins' in __init__
         Binding("d", "toggle_theme", "Light / dark", show=False),
         Binding("ctrl+q", "quit", "Quit", priority=True),
     ]
@@ -125,6 +113,21 @@ class MirrorlabApp(App[int]):
         self._file_info = (model.recipe.description if model.recipe is not None else "(reading the session file…)", "")
         self._shown: dict[object, object] = {}  # what each Static / table cell shows now
         self.sub_title = model.session.path.name
+        added, self.screen_problems = plugin_screens(model.session.registry)
+        #: Every screen the dashboard opens: the core's, then the plugins' (by name).
+        self.screens: list[ScreenEntry] = [*SCREENS, *added]
+        #: The screens opened by a key (the others only from the palette).
+        self.keyed: set[str] = {e.name for e in SCREENS}
+        taken = bound_keys(type(self), DataTable)  # the sources table has the focus: its keys come first
+        taken[self.COMMAND_PALETTE_BINDING] = "palette"
+        for entry in added:
+            if entry.key in taken:
+                self.screen_problems.append(f"screen {entry.title!r}: the key {entry.key!r} is taken by "
+                                            f"{taken[entry.key]!r}; open it from the palette (ctrl+p)")
+            else:
+                self.bind(entry.key, f"open_screen({entry.name!r})", description=entry.title)
+                self.keyed.add(entry.name)
+                taken[entry.key] = entry.title
 
     # -- layout ----------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -144,6 +147,8 @@ class MirrorlabApp(App[int]):
             table.add_row(source, *[""] * (len(COLUMNS) - 1), key=source)
         self.in_worker("read the session file", self.model.session.describe, self._show_file_summary,
                        owner=self.screen)
+        for problem in self.screen_problems:
+            self.notify(problem, severity="warning", timeout=10)
         self.refresh_view()
         self.set_interval(1 / self.poll_hz, self.refresh_view)
 
@@ -306,7 +311,7 @@ class MirrorlabApp(App[int]):
         return self.model.live
 
     def action_help(self) -> None:
-        self.push_screen(HelpScreen([(e.key, e.help) for e in SCREENS]))
+        self.push_screen(HelpScreen([(e.key if e.name in self.keyed else "ctrl+p", e.help) for e in self.screens]))
 
     def action_preview(self) -> None:
         if self._require_live():
@@ -321,9 +326,15 @@ class MirrorlabApp(App[int]):
         if self._require_live():
             self.in_worker("stop", self.model.stop)
 
-    def action_open_screen(self, title: str) -> None:
-        """Open one of :data:`SCREENS` (by title), or say why it cannot open now."""
-        cls = next(e for e in SCREENS if e.title == title).load()
+    def action_open_screen(self, name: str) -> None:
+        """Open one of :attr:`screens` (by name), or say why it cannot open now."""
+        entry = next(e for e in self.screens if e.name == name)
+        try:
+            cls = entry.load()
+        except Exception as exc:  # the plugin's screen module is broken: a message, the console goes on
+            self.show_error(f"Could not open {entry.title}", f"{entry.target}: {type(exc).__name__}: {exc}",
+                            "The plugin that provides this screen is broken; `mirrorlab plugins doctor` says more.")
+            return
         unavailable = getattr(cls, "unavailable", None)
         reason = unavailable(self.model) if unavailable is not None else ""
         if reason:
@@ -381,8 +392,9 @@ class MirrorlabApp(App[int]):
                                 partial(self.action_connect, source))
             yield SystemCommand(f"Disconnect {source}", f"stop {source} and release its device (ctrl+o in its detail)",
                                 partial(self.action_disconnect, source))
-        for e in SCREENS:
-            yield SystemCommand(e.title, f"{e.help} ({e.key})", partial(self.action_open_screen, e.title))
+        for e in self.screens:
+            keyed = f" ({e.key})" if e.name in self.keyed else ""
+            yield SystemCommand(e.title, f"{e.help}{keyed}", partial(self.action_open_screen, e.name))
         yield SystemCommand("Light / dark", "switch between the light and the dark theme (d)", self.action_toggle_theme)
         for source in self.model.sources:
             yield SystemCommand(f"Open {source}", f"settings, set-points and live plots of {source} (enter)",

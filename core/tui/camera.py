@@ -2,11 +2,11 @@
 with the detected markers (red) and their mirror pairs (a cyan line to the mirror image) drawn on it.
 
 Markers are detected on the shown frame, in a worker, by the registry's marker detector: the
-algorithm whose one required input is ``frames`` and whose outputs include ``xy`` (px), whichever
-plugin provides it. Mirror pairs come from the newest stored result with outputs ``real`` and
-``paired`` (frames, markers, [mirrors,] 2) px of the same frame count. A live session shows its
-newest frame while it acquires (4 times a second); otherwise, and in a session file, the recorded
-frames are shown (← → step, home/end).
+algorithm that declares the role ``marker_detector`` (input ``frames``, output ``xy`` in px, see
+:data:`mirrorlab.core.algorithms.ROLES`), whichever plugin provides it. Mirror pairs come from
+the newest stored result with outputs ``real`` and ``paired`` (frames, markers, [mirrors,] 2) px of
+the same frame count. A live session shows its newest frame while it acquires (4 times a second);
+otherwise, and in a session file, the recorded frames are shown (← → step, home/end).
 Units: pixels, x right, y down.
 """
 
@@ -36,15 +36,17 @@ if TYPE_CHECKING:
 
 #: Live frame refreshes per second.
 FRAME_HZ = 4
+#: The role (:data:`mirrorlab.core.algorithms.ROLES`) of the algorithm that finds the markers drawn.
+MARKER_DETECTOR = "marker_detector"
 MARKER = (255, 40, 40)
 PAIR = (0, 220, 255)
 
 
 def detector(registry: Registry) -> type[Algorithm] | None:
-    """The registered marker detector (one required input ``frames``, an output ``xy``), if any."""
+    """The registered marker detector (the algorithm declaring the role ``marker_detector``), if any."""
     for name in registry.names("algorithm"):
         cls = registry.algorithm(name)
-        if [p.name for p in cls.inputs if not p.optional] == ["frames"] and "xy" in {p.name for p in cls.outputs}:
+        if MARKER_DETECTOR in cls.roles:
             return cls
     return None
 

@@ -29,6 +29,7 @@ from mirrorlab.core import (
     RunContext,
     Session,
     SessionClock,
+    Subcommands,
     ValidationError,
     add_overwrite_option,
     add_parameter_options,
@@ -37,6 +38,7 @@ from mirrorlab.core import (
     plain,
     progress_bar,
 )
+from mirrorlab.plugins import CommandHelp
 
 from .algorithms import (
     UPPER_LIMB_OUTPUTS,
@@ -443,9 +445,9 @@ def _source_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def add(subparsers: argparse._SubParsersAction) -> None:
+def add(subparsers: Subcommands) -> None:
     """Register ``mirrorlab kinematics`` and its subcommands."""
-    k = subparsers.add_parser("kinematics", help="marker import/export, derivatives, joint angles, rigid bodies",
+    k = subparsers.add_parser("kinematics", help=CommandHelp.kinematics,
                               description=plain(__doc__.split("\n\n")[1].replace("\n", " ")))
     sub = k.add_subparsers(dest="kinematics_command", metavar="SUBCOMMAND", required=True)
 

@@ -37,6 +37,7 @@ class DetectMarkers(Algorithm):
                Port("eccentricity", "(F, K_max) second-moment eccentricity, NaN-padded"),
                Port("contrast", "(F, K_max) peak minus local background, NaN-padded", "grey level"))
     frame_inputs = ("frames",)  # each frame is detected on its own (Otsu's threshold too)
+    roles = ("marker_detector",)  # the console's camera view draws what it finds
 
     def run(self, inputs: Mapping[str, np.ndarray], params: Mapping[str, Any], context: RunContext) -> dict[str, Any]:
         frames = np.asarray(inputs["frames"])

@@ -20,11 +20,13 @@ from mirrorlab.core import (
     Parameter,
     Problem,
     Session,
+    Subcommands,
     ValidationError,
     add_parameter_options,
     collected,
     execute,
 )
+from mirrorlab.plugins import CommandHelp
 
 from .algorithms import FourBarAlgorithm, OptimalWallAlgorithm, SweptArea
 from .errors import MechanismError
@@ -166,9 +168,9 @@ DESCRIPTION = ("Commands run the registered algorithms in memory (nothing is wri
                "are .npy files or a dataset of a session file (--dataset /path or @algorithm/output).")
 
 
-def add(subparsers: argparse._SubParsersAction) -> None:
+def add(subparsers: Subcommands) -> None:
     """Register ``mirrorlab mechanisms`` and its subcommands."""
-    m = subparsers.add_parser("mechanisms", help="linkage reconstruction, swept areas, optimal wall",
+    m = subparsers.add_parser("mechanisms", help=CommandHelp.mechanisms,
                               description=DESCRIPTION)
     sub = m.add_subparsers(dest="mechanisms_command", metavar="SUBCOMMAND", required=True)
 

@@ -25,6 +25,7 @@ from mirrorlab.core import (
     RunContext,
     Session,
     SessionClock,
+    Subcommands,
     ValidationError,
     add_overwrite_option,
     add_parameter_options,
@@ -33,6 +34,7 @@ from mirrorlab.core import (
     parameter_type,
     progress_bar,
 )
+from mirrorlab.plugins import CommandHelp
 
 from .camera_arrays import CAMERA_KEYS, camera_kind
 from .csvio import read_columns_csv, read_marker_csv, write_points_csv
@@ -48,11 +50,11 @@ def _algorithms() -> dict[str, type[Algorithm]]:
             "parallel": ReconstructParallel, "central": ReconstructCentral, "mirror": ReconstructMirror}
 
 
-def add(sub: argparse._SubParsersAction) -> None:
+def add(sub: Subcommands) -> None:
     """Register ``calibrate`` and ``reconstruct`` on the ``mirrorlab`` sub-command parser."""
     algs = _algorithms()
     c = sub.add_parser(
-        "calibrate", help="calibrate a camera from chessboard photos or from calibration points (CSV)",
+        "calibrate", help=CommandHelp.calibrate,
         description="Calibrate a camera. Pinhole from chessboard photos: --images DIR --pattern 10x7 --square MM. "
                     "Thesis plane map from points: --points FILE.csv (columns x,y,plane_x,plane_y) "
                     "--camera-center X,Y,Z. Writes /calibration/<camera> into --session FILE (created if "
@@ -76,7 +78,7 @@ def add(sub: argparse._SubParsersAction) -> None:
     c.set_defaults(func=calibrate)
 
     r = sub.add_parser(
-        "reconstruct", help="3-D markers from 2-D marker data: --method parallel|central|mirror",
+        "reconstruct", help=CommandHelp.reconstruct,
         description="Reconstruct 3-D markers from 2-D marker image coordinates in a session (--input NAME=/DATASET) "
                     "or a CSV file (--markers; columns frame,marker,x,y and for the mirror method xv,yv). "
                     "Writes the result into SESSION (with provenance) and/or a points CSV (--out).")

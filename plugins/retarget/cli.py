@@ -17,11 +17,13 @@ from mirrorlab.core import (
     Parameter,
     ParameterSet,
     Problem,
+    Subcommands,
     ValidationError,
     add_parameter_options,
     collected,
     parameter_type,
 )
+from mirrorlab.plugins import CommandHelp
 
 from .algorithms import CHAIN_PARAMETERS, chain_from, read_motion, stream_motion
 from .errors import ChainDefinitionError
@@ -74,9 +76,9 @@ DESCRIPTION = ("SOURCE is a BVH file (--joints are BVH joint names), a marker fi
                "--lengths (mm) and --axes. Prints a summary (--json), optionally writes a CSV and PNG figures.")
 
 
-def add(subparsers: argparse._SubParsersAction) -> None:
+def add(subparsers: Subcommands) -> None:
     """Register ``mirrorlab retarget`` and its subcommand ``run``."""
-    r = subparsers.add_parser("retarget", help="chain shape approximation (retargeting) of recorded motion",
+    r = subparsers.add_parser("retarget", help=CommandHelp.retarget,
                               description=DESCRIPTION)
     sub = r.add_subparsers(dest="retarget_command", metavar="SUBCOMMAND", required=True)
     p = sub.add_parser("run", help="stream a BVH / marker file / session chain through the filter")

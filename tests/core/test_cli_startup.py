@@ -19,7 +19,7 @@ from tests.support import REPO, plugin_site, run_cli
 
 #: Modules (and their sub-modules) that must not be imported to print the version or the top-level
 #: help: heavy libraries, any plugin sub-package or instrument, the session machinery. The light
-#: ``mirrorlab.plugins`` package itself is read for its command table.
+#: ``mirrorlab.plugins`` package itself is read for its commands' help (entry-point group mirrorlab.commands).
 HEAVY = ("numpy", "scipy", "h5py", "cv2", "matplotlib", "rich", "mirrorlab.plugins.", "mirrorlab.instruments",
          "mirrorlab.core.session", "mirrorlab.core.algorithms")
 
@@ -62,15 +62,18 @@ def test_one_command_imports_only_its_own_plugin() -> None:
 def test_light_table_matches_the_real_parsers() -> None:
     """Every built-in command's light entry (name, help) is what its parser declares."""
     from mirrorlab.core.cli import build_parser, commands
+    from mirrorlab.core.registry import Registry
 
     full = build_parser()
     sub = next(a for a in full._actions if a.dest == "command")
     real = {a.dest: a.help for a in sub._choices_actions}
-    light = {c.name: c.help for c in commands.builtin_commands()}
+    light = commands.command_table(Registry(entry_points=False))
     assert real == light
 
 
 PLUGIN = '''
+import sys
+
 from mirrorlab.core import hookimpl
 
 
@@ -84,6 +87,16 @@ def mirrorlab_add_cli_commands(subparsers):
     p = subparsers.add_parser("hello", help="say hello (a third-party command)")
     p.add_argument("--name", default="world")
     p.set_defaults(func=_hello)
+
+
+@hookimpl(wrapper=True, specname="mirrorlab_add_cli_commands")
+def watch_commands(subparsers):
+    """A hook wrapper: it wraps every plugin's commands, the built-in ones too."""
+    had = "kinematics" in subparsers
+    result = yield
+    if not had and "kinematics" in subparsers:
+        print(f"wrapped: kinematics added for {subparsers.argv}", file=sys.stderr)
+    return result
 '''
 
 
@@ -104,6 +117,16 @@ def test_third_party_commands_still_work(hello_site: Path) -> None:
     assert "hello" in unknown.stderr and "calibrate" in unknown.stderr
     builtin = run_cli("plugins", sites=(hello_site,))
     assert builtin.returncode == 0 and "filter" in builtin.stdout
+
+
+def test_builtin_commands_are_added_through_the_hook(hello_site: Path) -> None:
+    """One route: the kinematics command is added by its plugin's mirrorlab_add_cli_commands, which a
+    third-party hook wrapper sees; the top-level help lists it without importing the plugin."""
+    ran = run_cli("kinematics", "--help", sites=(hello_site,))
+    assert ran.returncode == 0 and "derivatives" in ran.stdout
+    assert ran.stderr == "wrapped: kinematics added for ['kinematics', '--help']\n"
+    listed = run_cli("--help", sites=(hello_site,))
+    assert re.search(r"^ +kinematics\n +marker import/export", listed.stdout, re.M) and "wrapped" not in listed.stderr
 
 
 def _plugin_packages(modules: set[str]) -> set[str]:
@@ -138,3 +161,31 @@ def test_declarations_match_what_the_builtin_plugins_register() -> None:
     reg = Registry(entry_points=False)
     assert reg.undeclared() == []
     assert all(info.declared for info in reg.installed().values()), "every built-in plugin declares what it provides"
+
+
+BLOCKED = textwrap.dedent("""
+    import importlib.abc, sys
+
+    class Refuse(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name.startswith("mirrorlab.plugins.kinematics"):
+                raise ImportError(f"{name} is blocked for this test")
+
+    sys.meta_path.insert(0, Refuse())
+    from mirrorlab.core.cli import main
+    sys.exit(main(sys.argv[1:]))
+""")
+
+
+def test_a_broken_plugins_command_is_listed_and_fails_naming_the_plugin() -> None:
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-c", BLOCKED, *args], capture_output=True, text=True, cwd=REPO,
+                              timeout=120)
+
+    listed = run("--help")
+    assert listed.returncode == 0 and re.search(r"^ +kinematics\n +marker import/export", listed.stdout, re.M)
+    ran = run("kinematics", "--help")
+    assert ran.returncode == 1 and ran.stderr == (
+        "mirrorlab: error: the command 'kinematics' is not available: plugin 'mirrorlab.plugins.kinematics' is broken: "
+        "ImportError: mirrorlab.plugins.kinematics is blocked for this test (see `mirrorlab plugins doctor`)\n")
+    assert run("session", "--help").returncode == 0  # the other commands are unaffected

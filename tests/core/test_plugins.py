@@ -268,6 +268,11 @@ def _algorithm(name):
 @hookimpl
 def mirrorlab_register_algorithms():
     return [_algorithm("lazy_declared"), _algorithm("lazy_undeclared")]
+
+
+@hookimpl
+def mirrorlab_add_cli_commands(subparsers):
+    subparsers.add_parser("lazy_command", help="a command it does not declare")
 '''
 
 
@@ -294,6 +299,8 @@ def test_a_declared_plugin_is_imported_only_when_a_name_it_declares_is_asked_for
     assert reg.algorithm("lazy_declared").name == "lazy_declared" and reg.installed()["lazy"].loaded
     assert reg.algorithm("lazy_undeclared").name == "lazy_undeclared"  # found once imported
     assert reg.undeclared() == ["plugin 'lazy' provides algorithm lazy_undeclared without declaring it in "
+                                "entry-point group 'mirrorlab.provides'",
+                                "plugin 'lazy' provides command lazy_command without declaring it in "
                                 "entry-point group 'mirrorlab.provides'"]
     sys.modules.pop("lazy_mirrorlab")
 

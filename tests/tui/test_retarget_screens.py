@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mirrorlab.core.tui.app import MirrorlabApp
-from mirrorlab.core.tui.chain import INPUT_LINKS, OUTPUT_LINKS, START, STEP, ChainScreen
-from mirrorlab.core.tui.dexterity import LENGTH, TILT, DexterityScreen
 from mirrorlab.core.tui.model import Console
+from mirrorlab.plugins.mechanisms.screen import LENGTH, TILT, DexterityScreen
 from mirrorlab.plugins.retarget import Chain, Objective, approximate
+from mirrorlab.plugins.retarget.screen import INPUT_LINKS, OUTPUT_LINKS, START, STEP, ChainScreen
 from textual.widgets import Static
 
 from tests.retarget.optimum import optimum_bounds
@@ -31,6 +31,7 @@ def app(tmp_path: Path) -> MirrorlabApp:
 
 async def test_both_screens_are_in_the_command_palette(app: MirrorlabApp) -> None:
     async with app.run_test(size=SIZE) as pilot:
+        keys = {(b.binding.key, b.binding.description) for b in app.screen.active_bindings.values()}
         commands = {c.title: c for c in app.get_system_commands(app.screen)}
         commands["Virtual chain"].callback()
         await until(pilot, lambda: isinstance(app.screen, ChainScreen), "the palette opened the chain")
@@ -40,8 +41,7 @@ async def test_both_screens_are_in_the_command_palette(app: MirrorlabApp) -> Non
         await pilot.press("escape")
         await until(pilot, lambda: not isinstance(app.screen, DexterityScreen), "back on the dashboard")
         await app.run_action("quit")  # stops the dashboard's polling before the test's app goes away
-    keys = {(b.key, b.description) for b in MirrorlabApp.BINDINGS}
-    assert {("v", "Virtual chain"), ("m", "Dexterity task")} <= keys
+    assert {("v", "Virtual chain"), ("m", "Dexterity task")} <= keys  # the plugins' keys on the dashboard
 
 
 async def test_virtual_chain_is_retargeted_to_the_optimum_of_each_pose(app: MirrorlabApp) -> None:

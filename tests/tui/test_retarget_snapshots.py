@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 from mirrorlab.core.tui.app import MirrorlabApp
-from mirrorlab.core.tui.chain import ChainScreen
-from mirrorlab.core.tui.dexterity import DexterityScreen
 from mirrorlab.core.tui.model import Console
+from mirrorlab.plugins.mechanisms.screen import DexterityScreen
+from mirrorlab.plugins.retarget.screen import ChainScreen
 from textual.pilot import Pilot
 
 from tests.tui.test_console import LOOP, until

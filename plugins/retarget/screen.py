@@ -1,8 +1,8 @@
-"""The keyboard-driven virtual input chain (the retargeting paper's own input, spec §7).
+"""The console's virtual input chain (``v``; the retargeting paper's own input, spec §7).
 
 The operator turns the joints of a planar n-DOF input chain with the keyboard; the retargeting
-filter's compute module (:class:`mirrorlab.plugins.retarget.stream.Compute`, warm-started from the
-previous pose, multistart on the first) approximates it by an m-DOF output chain in a worker thread,
+filter's compute module (:class:`.stream.Compute`, warm-started from the previous pose, multistart
+on the first) approximates it by an m-DOF output chain in a worker thread,
 the newest pose first (a pose overtaken while the worker computes is skipped, as the filter's input
 buffer does). The plot shows both chains and the evaluation function f. Units: mm, rad; f in mm².
 """
@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from mirrorlab.core.tui import LatestOnly
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -20,7 +21,8 @@ from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 from textual_plotext import PlotextPlot
 
-from .latest import LatestOnly
+from .chain import Chain
+from .stream import Compute
 
 #: Input chain: link lengths (mm); output chain: link lengths (mm). Planar chains (all axes z).
 INPUT_LINKS = (100.0, 100.0, 100.0, 100.0)
@@ -53,9 +55,6 @@ class Retargeter:
 
     def __init__(self, input_links: tuple[float, ...] = INPUT_LINKS,
                  output_links: tuple[float, ...] = OUTPUT_LINKS) -> None:
-        from mirrorlab.plugins.retarget import Chain
-        from mirrorlab.plugins.retarget.stream import Compute
-
         self.input = Chain(list(input_links), ["z"] * len(input_links))
         self.output = Chain(list(output_links), ["z"] * len(output_links))
         self.compute = Compute(self.output, self.input.lengths)

@@ -1,13 +1,12 @@
-"""The dexterity task of thesis §6.2.1 (spec ``analysis.md`` §5): move a segment from vertical to
-horizontal with its end B on the x axis, sweeping as little area as possible.
+"""The console's dexterity task (``m``) of thesis §6.2.1 (spec ``analysis.md`` §5): move a segment
+from vertical to horizontal with its end B on the x axis, sweeping as little area as possible.
 
 The segment AB (length ``l``) starts vertical, A = (0, l), B = (0, 0); the task ends with A at the
 origin and B = (−l, 0). The keys move B along the x axis and tilt the segment; every position is
 added to the motion, and the area swept so far (the exact union of the regions between successive
-positions, :func:`mirrorlab.plugins.mechanisms.swept.segment_swept_area`) is computed in a worker
-thread. For comparison: the vertical wall's (astroid) area 3πl²/32 and the optimal wall's
-(:func:`mirrorlab.plugins.mechanisms.walls.optimal_wall`, computed in a worker when the screen
-opens, on a coarse grid). Units: mm, mm².
+positions, :func:`.swept.segment_swept_area`) is computed in a worker thread. For comparison: the
+vertical wall's (astroid) area 3πl²/32 and the optimal wall's (:func:`.walls.optimal_wall`, computed
+in a worker when the screen opens, on a coarse grid). Units: mm, mm².
 """
 
 from __future__ import annotations
@@ -17,6 +16,7 @@ from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
+from mirrorlab.core.tui import LatestOnly
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -24,7 +24,8 @@ from textual.screen import Screen
 from textual.widgets import Footer, Header, Static
 from textual_plotext import PlotextPlot
 
-from .latest import LatestOnly
+from .swept import segment_swept_area
+from .walls import optimal_wall, wall_motion
 
 #: Segment length, mm.
 LENGTH = 300.0
@@ -52,8 +53,6 @@ class Optimum:
 def optimum(length: float = LENGTH) -> Optimum:
     """The optimal wall of spec §6 on a coarse grid, scaled from the thesis's l = 3 to ``length`` mm
     (areas scale with the square: the problem is similar under scaling); computed once per process."""
-    from mirrorlab.plugins.mechanisms.walls import optimal_wall, wall_motion
-
     best = optimal_wall(grid=OPTIMUM_GRID, final=OPTIMUM_FINAL, maxiter=OPTIMUM_ITER)
     a, b = wall_motion(best.w, 3.0, OPTIMUM_DRAWN)
     s = length / 3.0
@@ -63,8 +62,6 @@ def optimum(length: float = LENGTH) -> Optimum:
 def swept(item: tuple[int, int, np.ndarray, np.ndarray]) -> tuple[int, int, float]:
     """``(motion, positions, area mm²)`` for ``(motion, positions, a, b)``: the area swept through the
     positions ``a``, ``b`` (k, 2) mm of a motion (numbered, so that a restarted motion is told apart)."""
-    from mirrorlab.plugins.mechanisms.swept import segment_swept_area
-
     motion, k, a, b = item
     return motion, k, (segment_swept_area(a, b) if len(a) > 1 else 0.0)
 
@@ -94,7 +91,7 @@ class SweepPlot(PlotextPlot):
 
 
 class DexterityScreen(Screen[None]):
-    """``x`` on the dashboard: the swept-area dexterity task (thesis §6.2.1)."""
+    """``m`` on the dashboard: the swept-area dexterity task (thesis §6.2.1)."""
 
     BINDINGS = [
         Binding("left", "move(-1)", "B ←"),
