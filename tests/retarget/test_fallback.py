@@ -80,7 +80,9 @@ def test_realtime_with_the_worker_counters_are_consistent() -> None:
     X = trap_stream()
     out, stats = stream(compute_for(X, T2_OUT, fallback_delay=None), X, realtime=True)
     assert stats.frames_in == FRAMES and stats.computed + stats.dropped == FRAMES
-    assert out["restarted"][0] and stats.restarts >= 1
+    # the multistart starts on the first frame computed; in real time that frame may miss its deadline
+    # on a loaded machine and not be published, so only the counts are certain
+    assert stats.restarts >= 1 and int(out["restarted"].sum()) <= stats.restarts
     assert stats.late_adoptions <= 1 and int(out["adopted"].sum()) <= stats.late_adoptions
     assert np.all(np.isfinite(out["q"]))
 
