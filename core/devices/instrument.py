@@ -17,7 +17,7 @@ and ``status`` may be called any time after ``connect``; :meth:`set` changes one
 (a set-point) at any time. Every call is bounded by ``timeout``.
 
 While started, :meth:`acquire` runs in the instrument's own thread and the instrument's
-:attr:`~Instrument.state` says what it is doing (:data:`STATES`). Errors decide their own fate:
+:attr:`~Instrument.state` says what it is doing (:class:`InstrumentState`). Errors decide their own fate:
 
 * *transient* (:class:`DeviceDisconnected`, :class:`DeviceTimeout`, :class:`ProtocolError`): the
   base class reports it, reconnects with exponential backoff within the reconnect budget
@@ -34,7 +34,8 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from enum import StrEnum
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -55,8 +56,27 @@ from .protocol import LineClient, Reply
 from .simulator import LineSimulator, SimulatedWorld
 from .transport import open_port
 
-#: Lifecycle states of an instrument (:attr:`Instrument.state`).
-STATES = ("idle", "connecting", "acquiring", "reconnecting", "failed", "stopped")
+
+class InstrumentState(StrEnum):
+    """Lifecycle state of an instrument (:attr:`Instrument.state`).
+
+    A ``str``: a state compares equal to its value (``state == "acquiring"``) and is stored and
+    printed as it (event data, JSON, the console), so the values are part of the session file format.
+    """
+
+    IDLE = "idle"                  #: connected (or not yet), not acquiring
+    CONNECTING = "connecting"      #: opening the connection
+    ACQUIRING = "acquiring"        #: its acquisition thread runs
+    RECONNECTING = "reconnecting"  #: lost the device while acquiring, reconnecting within the budget
+    FAILED = "failed"              #: stopped by a permanent error (:attr:`Instrument.failed`)
+    STOPPED = "stopped"            #: acquisition ended (told to, the source ended, or disconnected)
+
+
+#: The value of each lifecycle state, for callers that name one by its string (``set_state("idle")``);
+#: a test checks that it lists exactly the values of :class:`InstrumentState`.
+StateName = Literal["idle", "connecting", "acquiring", "reconnecting", "failed", "stopped"]
+#: Lifecycle states of an instrument, as their values.
+STATES: tuple[str, ...] = tuple(s.value for s in InstrumentState)
 #: Errors after which reconnecting may help.
 TRANSIENT = (DeviceDisconnected, DeviceTimeout, ProtocolError)
 
@@ -148,7 +168,7 @@ class Instrument(ABC):
         self.reconnect_deadline: float | None = None
         #: The newest :class:`Status`, cached by the acquisition thread (never a device call to read).
         self.last_status: Status | None = None
-        self.state = "idle"
+        self.state: InstrumentState = InstrumentState.IDLE
         self._status_due = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -302,14 +322,15 @@ class Instrument(ABC):
         self.stop()
         self.close()
 
-    def set_state(self, state: str, message: str = "") -> None:
-        """Enter lifecycle ``state`` (one of :data:`STATES`) and report the change as a ``state`` event."""
+    def set_state(self, state: InstrumentState | StateName, message: str = "") -> None:
+        """Enter lifecycle ``state`` and report the change as a ``state`` event."""
         if state not in STATES:
             raise ValueError(f"state must be one of {STATES}, not {state!r}")
+        state = InstrumentState(state)
         if state != self.state:
             self.state = state
             # info: the cause (connection_lost, failed...) is its own event at its own level
-            self.report("info", "state", message or f"{self.device_name} is {state}", state=state)
+            self.report("info", "state", message or f"{self.device_name} is {state}", state=state.value)
 
     def start(self, emit: Emit) -> None:
         """Start :meth:`acquire` in the instrument's thread (reconnecting on connection loss)."""
@@ -319,7 +340,7 @@ class Instrument(ABC):
         self.failed = None
         self._thread = threading.Thread(target=self._run, args=(_StatusCaching(emit, self),),
                                         name=f"acquire {self.label}", daemon=True)
-        self.set_state("acquiring")
+        self.set_state(InstrumentState.ACQUIRING)
         self._thread.start()
 
     def stop(self, timeout: float | None = None) -> None:
@@ -340,11 +361,11 @@ class Instrument(ABC):
                 self.failed = DeviceTimeout(f"{self.device_name}: acquisition did not stop within "
                                             f"{self.stop_timeout:g} s of being told to")
                 self.report("error", "stop_timeout", f"{self.failed}; power-cycle the device before using it again")
-                self.set_state("failed")
+                self.set_state(InstrumentState.FAILED)
                 return
         self._thread = None
-        if self.state in ("acquiring", "reconnecting"):
-            self.set_state("stopped")
+        if self.state in (InstrumentState.ACQUIRING, InstrumentState.RECONNECTING):
+            self.set_state(InstrumentState.STOPPED)
 
     def interrupt(self) -> None:
         """Make a running device command end now (called by :meth:`stop`); default: nothing to interrupt."""
@@ -381,7 +402,7 @@ class Instrument(ABC):
             try:
                 self.acquire(emit, self._stop)
                 if not self._stop.is_set():
-                    self.set_state("stopped", f"{self.device_name}: the source has ended")
+                    self.set_state(InstrumentState.STOPPED, f"{self.device_name}: the source has ended")
                 return
             except TRANSIENT as exc:
                 if self._stop.is_set():
@@ -401,11 +422,11 @@ class Instrument(ABC):
     def _fail(self, exc: BaseException, what: str) -> None:
         self.failed = exc
         self.report("error", "failed", f"{self.device_name} {what}: {exc}")
-        self.set_state("failed")
+        self.set_state(InstrumentState.FAILED)
 
     def _reconnect_with_backoff(self) -> bool:
         """Reconnect within :attr:`reconnect_budget`; ``False`` if stopped, out of budget or permanent."""
-        self.set_state("reconnecting")
+        self.set_state(InstrumentState.RECONNECTING)
         budget = self.reconnect_budget
         self.reconnect_deadline = None if budget is None else time.monotonic() + budget
         delay = 0.05
@@ -430,7 +451,7 @@ class Instrument(ABC):
                     return False
                 self.reconnects += 1
                 self.report("info", "reconnected", f"{self.device_name} reconnected", reconnects=self.reconnects)
-                self.set_state("acquiring")
+                self.set_state(InstrumentState.ACQUIRING)
                 return True
             return False
         finally:
