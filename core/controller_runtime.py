@@ -74,7 +74,7 @@ class ControllerContext:
         return self._runner.emitter.now()
 
     def set(self, role: str, parameter: str, value: Any, sample_time: float | None = None) -> Any:
-        """Send a set-point to the instrument bound to ``role`` and record it.
+        """Send a set-point to the instrument bound to ``role``, wait for its acknowledgement and record it.
 
         Parameters
         ----------
@@ -88,8 +88,9 @@ class ControllerContext:
             Session time (s) of the input sample this set-point answers; its latency to the
             acknowledgement is recorded in ``latency``.
 
-        Returns the value the instrument applied. A device error is reported as a
-        ``setpoint_failed`` warning and re-raised; the controller may go on.
+        Returns the value the instrument applied (``Instrument.set(...).wait()``, in the controller's
+        thread). A device error is reported as a ``setpoint_failed`` warning and re-raised; the
+        controller may go on.
         """
         return self._runner.set(role, parameter, value, sample_time)
 
@@ -297,7 +298,7 @@ class ControllerRunner:
     def _apply(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
         inst = self.instruments[role]
         try:
-            applied = inst.set(parameter, value)
+            applied = inst.set(parameter, value).wait()  # the latency runs to the acknowledgement
         except DeviceError as exc:
             self.commands_failed += 1
             self.report("warning", "setpoint_failed", f"controller {self.label!r}: {inst.device_name} "

@@ -393,6 +393,16 @@ class ParameterSet:
                 return p
         raise KeyError(name)
 
+    @property
+    def setpoints(self) -> tuple[str, ...]:
+        """Names of the live parameters (declared ``live=True``), in declaration order: the set-points
+        an instrument accepts through :meth:`~mirrorlab.core.devices.Instrument.set`.
+
+        >>> ParameterSet(Parameter("rate", float, 1.0), Parameter("target", float, 0.0, live=True)).setpoints
+        ('target',)
+        """
+        return tuple(p.name for p in self.parameters if p.live)
+
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.parameters if not p.required}
 

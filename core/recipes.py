@@ -356,7 +356,7 @@ def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], 
                                     f"it has: {', '.join(plans) or 'none'}", file))
             continue
         params = registry.instrument(plan.plugin).parameters
-        not_live = [n for n in commanded[role] if n not in params or not params[n].live]
+        not_live = [n for n in commanded[role] if n not in params.setpoints]
         if not_live:
             problems.append(Problem(f"{where}.instruments.{role}", f"{plan.plugin} {instrument!r} has no "
                                     f"live-settable {', '.join(not_live)}, which {cls.name} sets", file))

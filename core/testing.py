@@ -226,12 +226,12 @@ class InstrumentConformance:
     def test_live_parameters_are_set_one_at_a_time(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, _ = sim
         inst.configure()
-        for p in inst.parameters:
-            if p.live:
-                before = {k: v for k, v in inst.settings.items() if k != p.name}
-                assert inst.set(p.name, inst.settings[p.name]) == inst.settings[p.name]
-                assert {k: v for k, v in inst.settings.items() if k != p.name} == before
-        fixed = [p.name for p in inst.parameters if not p.live]
+        for name in inst.parameters.setpoints:
+            before = {k: v for k, v in inst.settings.items() if k != name}
+            status = inst.set(name, inst.settings[name])
+            assert status.wait() == inst.settings[name] and status.success, status
+            assert {k: v for k, v in inst.settings.items() if k != name} == before
+        fixed = [p.name for p in inst.parameters if p.name not in inst.parameters.setpoints]
         if fixed:
             with pytest.raises(ValidationError, match="not live-settable"):
                 inst.set(fixed[0], inst.settings[fixed[0]])

@@ -14,7 +14,8 @@ build TUI forms and run the conformance kit::
 
 Lifecycle: ``connect → identify → configure → streams → start(emit) … stop → close``; ``read``
 and ``status`` may be called any time after ``connect``; :meth:`set` changes one live parameter
-(a set-point) at any time. Every call is bounded by ``timeout``.
+(a set-point) at any time, returning a :class:`~mirrorlab.core.devices.SetStatus` at once. Every
+call is bounded by ``timeout``.
 
 While started, :meth:`acquire` runs in the instrument's own thread and the instrument's
 :attr:`~Instrument.state` says what it is doing (:class:`InstrumentState`). Errors decide their own fate:
@@ -33,6 +34,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, ClassVar, Literal
@@ -53,6 +55,7 @@ from ..errors import (
 from ..params import ParameterSet
 from ..streams import StreamSpec
 from .protocol import LineClient, Reply
+from .setpoint import SetStatus
 from .simulator import LineSimulator, SimulatedWorld
 from .transport import open_port
 
@@ -172,7 +175,10 @@ class Instrument(ABC):
         self._status_due = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        self._set_lock = threading.Lock()  # one set-point at a time, whichever thread sends it
+        # sends the set-points, one at a time in the order given, whichever thread gives them; made on
+        # the first set() (most instruments have no set-point); its idle thread ends with the instrument
+        self._setpoints: ThreadPoolExecutor | None = None
+        self._setpoints_lock = threading.Lock()
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.label!r} port={self.port!r}>"
@@ -259,37 +265,56 @@ class Instrument(ABC):
         self.apply_settings(self.settings)
         return dict(self.settings)
 
-    def set(self, name: str, value: Any, timeout: float | None = None) -> Any:
-        """Change one live-settable parameter (a set-point) and return when the device acknowledged it.
+    def set(self, name: str, value: Any, timeout: float | None = None) -> SetStatus:
+        """Send one live-settable parameter (a set-point); return at once, with its :class:`SetStatus`.
 
-        Only ``name`` is validated (against its declaration and the other current settings) and
-        sent; nothing else is re-sent. Safe to call from any thread, also while acquiring.
+        Only ``name`` is validated (against its declaration and the other current settings), now, in
+        the calling thread; the instrument's set-point thread then sends it, and nothing else, to the
+        device. Set-points are sent one at a time, in the order given, whichever thread gives them;
+        safe to call from any thread, also while acquiring. ``set(...).wait()`` returns when the
+        device acknowledged it, with the applied value, or raises the device's error.
 
         Parameters
         ----------
         name
-            A parameter declared with ``live=True``.
+            One of the instrument's set-points: a parameter declared with ``live=True``
+            (:attr:`ParameterSet.setpoints <mirrorlab.core.params.ParameterSet.setpoints>`).
         value
             New value, in the parameter's unit (or a ``"<number> <unit>"`` string).
         timeout
-            Seconds allowed for the acknowledgement (default: the instrument's ``timeout``).
+            Seconds the device has to acknowledge it once sent (default: the instrument's ``timeout``);
+            past it the status fails with :class:`DeviceTimeout`.
 
-        Returns the value as validated and applied.
+        Raises
+        ------
+        ValidationError
+            ``name`` is not a set-point of this instrument, or ``value`` is not valid for it.
         """
-        if name not in self.parameters:
-            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
-                                           f"{self.name} has no parameter {name!r}")])
-        if not self.parameters[name].live:
-            live = [p.name for p in self.parameters if p.live]
-            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
-                                           "not live-settable; change it with configure() "
-                                           f"(live-settable: {', '.join(live) or 'none'})")])
+        setpoints = self.parameters.setpoints
+        if name not in setpoints:
+            problem = (f"{self.name} has no parameter {name!r}" if name not in self.parameters else
+                       f"not live-settable; change it with configure() (live-settable: {', '.join(setpoints) or 'none'})")
+            raise ValidationError([Problem(f"instruments.{self.label}.{name}", problem)])
         settings = self.parameters.validate({**self.settings, name: value},
                                             where=f"instruments.{self.label}.settings")
-        with self._set_lock:
-            self.apply_setpoint(name, settings[name], self.timeout if timeout is None else timeout)
-            self.settings[name] = settings[name]
-        return settings[name]
+        status = SetStatus(self.device_name, name, settings[name])
+        with self._setpoints_lock:
+            if self._setpoints is None:
+                self._setpoints = ThreadPoolExecutor(1, thread_name_prefix=f"set-points {self.label}")
+            self._setpoints.submit(self._send_setpoint, status, self.timeout if timeout is None else timeout)
+        return status
+
+    def _send_setpoint(self, status: SetStatus, timeout: float) -> None:
+        """In the set-point thread: send one validated set-point, then finish its status."""
+        error: Exception | None = None
+        try:
+            self.apply_setpoint(status.name, status.value, timeout)
+            self.settings[status.name] = status.value
+        except Exception as exc:  # the status carries it to whoever waits (a controller reports it)
+            error = exc
+        for failed in status.finish(error):
+            self.report("error", "setpoint_callback_failed", f"{self.device_name}: a callback of the set-point "
+                        f"{status.name} raised {type(failed).__name__}: {failed}")
 
     def apply_setpoint(self, name: str, value: Any, timeout: float) -> None:
         """Send one validated live parameter and wait up to ``timeout`` s for the acknowledgement.

@@ -31,7 +31,7 @@ def test_driver_sends_the_documented_bytes() -> None:
         gimbal.connect()
         gimbal.identify()
         gimbal.configure()
-        gimbal.set("h_angle", 0.05)
+        gimbal.set("h_angle", 0.05).wait()
         gimbal.hold()
         reading = gimbal.read()
         gimbal.close()
