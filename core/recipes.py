@@ -50,6 +50,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from .algorithms import AlgorithmExecutor
 from .errors import MirrorlabError, PluginError, Problem, StoppedOnRequest, ValidationError
 from .params import Parameter, ParameterSet
 from .registry import Registry, get_registry
@@ -485,7 +486,8 @@ def check_on_session(recipe: Recipe, session: Session) -> None:
 
 
 def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,
-                 on_session: Callable[[Session], None] | None = None, executor: Any = None) -> Path:
+                 on_session: Callable[[Session], object] | None = None,
+                 executor: AlgorithmExecutor | None = None) -> Path:
     """Run an analysis recipe's steps on an existing session file, appending their results; return its path.
 
     The recipe (loaded with ``analysis=True``) is logged with its path, hash and overrides; each

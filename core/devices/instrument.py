@@ -256,7 +256,8 @@ class Instrument(ABC):
     @classmethod
     def has_simulator(cls) -> bool:
         """Whether :meth:`make_simulator` can build a model: :attr:`simulator` is set or it is overridden."""
-        return cls.simulator is not None or cls.make_simulator.__func__ is not Instrument.make_simulator.__func__
+        overridden = any("make_simulator" in vars(c) for c in cls.__mro__[:cls.__mro__.index(Instrument)])
+        return cls.simulator is not None or overridden
 
     def configure(self, **changes: Any) -> dict[str, Any]:
         """Validate ``changes`` against :attr:`parameters`, apply them, return all settings."""
