@@ -189,7 +189,7 @@ class ControllerRunner:
         """
         thread, sub = self._thread, self._subscription
         running = thread is not None and thread.is_alive() and thread is not threading.current_thread()
-        if running and sub is not None and not self.controller.latest_only:
+        if running and thread is not None and sub is not None and not self.controller.latest_only:
             deadline = time.monotonic() + timeout / 2
             while sub.nbytes and thread.is_alive() and time.monotonic() < deadline:
                 time.sleep(0.005)

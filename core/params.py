@@ -226,7 +226,7 @@ class Parameter:
         if self.bounds is not None and self.type in (int, float):
             lo, hi = self.bounds
             unit = f" {self.unit}" if self.unit else ""
-            flat = [coerced] if self.shape is None else list(_flatten(coerced))
+            flat: list[Any] = [coerced] if self.shape is None else list(_flatten(coerced))
             where = "" if self.shape is None else "an element: "
             for x in flat:
                 if lo is not None and x < lo:

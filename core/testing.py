@@ -32,7 +32,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import pytest
@@ -42,10 +42,13 @@ from .devices import Instrument, SerialInstrument, SimulatorServer
 from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError, ValidationError
 from .streams import Block, Emitter, StreamRouter, Subscription
 
+#: The instrument class a helper was given, and so the instance it hands back.
+I = TypeVar("I", bound=Instrument)
+
 
 @contextmanager
-def simulated(instrument_class: type[Instrument], settings: dict[str, Any] | None = None, transport: str = "pty",
-              seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[Instrument, SimulatorServer]]:
+def simulated(instrument_class: type[I], settings: dict[str, Any] | None = None, transport: str = "pty",
+              seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[I, SimulatorServer]]:
     """Start ``instrument_class``'s simulator and yield ``(connected instrument, server)``.
 
     The simulator clock is FAST so modelled delays cost no wall time.
