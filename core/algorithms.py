@@ -16,12 +16,15 @@ import traceback
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
 from .errors import AlgorithmInputError, Cancelled, Problem
 from .params import ParameterSet
+
+if TYPE_CHECKING:
+    from .session import Session
 
 
 @dataclass(frozen=True)
@@ -256,3 +259,24 @@ class ResultRef:
     @property
     def path(self) -> str:
         return f"/results/{self.algorithm}/{self.run_id}"
+
+
+#: Each input's digest entry for a run's provenance (:func:`~mirrorlab.core.digests.input_entry`), by input name.
+InputDigests = dict[str, dict[str, Any]]
+
+
+class AlgorithmExecutor(Protocol):
+    """What :attr:`Session.executor <mirrorlab.core.session.Session.executor>` may be: runs the session's
+    algorithms instead of this process (:mod:`mirrorlab.core.batch.executors`: in place with a note of
+    where, or in chunks of frames on Dask workers)."""
+
+    @property
+    def provenance(self) -> Mapping[str, Any]:
+        """Where and how it runs (JSON-able), stored with every result as ``@executor``."""
+        ...
+
+    def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any], params: Mapping[str, Any],
+                 context: RunContext) -> tuple[RunOutcome, InputDigests]:
+        """Run ``cls`` on ``inputs`` (h5py datasets of the session file, or arrays) with ``params``, reporting to
+        ``context``; return the outcome and the digest entry of each input, hashed as it was read."""
+        ...

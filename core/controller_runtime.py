@@ -15,6 +15,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -24,8 +25,17 @@ from .devices import Instrument
 from .errors import DeviceError, MirrorlabError
 from .streams import Emitter, StreamSpec, Subscription
 
-#: Lifecycle states of a controller.
-CONTROLLER_STATES = ("idle", "running", "failed", "stopped")
+
+class ControllerState(StrEnum):
+    """Lifecycle state of a controller (:attr:`ControllerRunner.state`); a ``str`` equal to its value,
+    which is what events and snapshots carry."""
+
+    IDLE = "idle"        #: added, not started
+    RUNNING = "running"  #: its thread runs
+    FAILED = "failed"    #: its code raised; the instruments it commands were told to hold
+    STOPPED = "stopped"  #: stopped with the session's acquisition
+
+
 #: Latencies kept for the statistics of :meth:`ControllerRunner.latency_stats`.
 LATENCY_WINDOW = 2048
 
@@ -64,7 +74,7 @@ class ControllerContext:
         return self._runner.emitter.now()
 
     def set(self, role: str, parameter: str, value: Any, sample_time: float | None = None) -> Any:
-        """Send a set-point to the instrument bound to ``role`` and record it.
+        """Send a set-point to the instrument bound to ``role``, wait for its acknowledgement and record it.
 
         Parameters
         ----------
@@ -78,8 +88,9 @@ class ControllerContext:
             Session time (s) of the input sample this set-point answers; its latency to the
             acknowledgement is recorded in ``latency``.
 
-        Returns the value the instrument applied. A device error is reported as a
-        ``setpoint_failed`` warning and re-raised; the controller may go on.
+        Returns the value the instrument applied (``Instrument.set(...).wait()``, in the controller's
+        thread). A device error is reported as a ``setpoint_failed`` warning and re-raised; the
+        controller may go on.
         """
         return self._runner.set(role, parameter, value, sample_time)
 
@@ -129,7 +140,7 @@ class ControllerRunner:
         self.instruments = dict(instruments)
         self.emitter = emitter
         self.report = report
-        self.state = "idle"
+        self.state = ControllerState.IDLE
         self.error: BaseException | None = None
         self.commands_sent = 0
         self.commands_failed = 0
@@ -166,7 +177,7 @@ class ControllerRunner:
         self.error = None
         self._subscription = self._subscribe(list(self.inputs.values()))
         self._thread = threading.Thread(target=self._run, name=f"controller {self.label}", daemon=True)
-        self._set_state("running")
+        self._set_state(ControllerState.RUNNING)
         self._thread.start()
 
     def stop(self, timeout: float = 2.0) -> None:
@@ -178,7 +189,7 @@ class ControllerRunner:
         """
         thread, sub = self._thread, self._subscription
         running = thread is not None and thread.is_alive() and thread is not threading.current_thread()
-        if running and sub is not None and not self.controller.latest_only:
+        if running and thread is not None and sub is not None and not self.controller.latest_only:
             deadline = time.monotonic() + timeout / 2
             while sub.nbytes and thread.is_alive() and time.monotonic() < deadline:
                 time.sleep(0.005)
@@ -191,7 +202,7 @@ class ControllerRunner:
                 self.report("error", "stop_timeout", f"controller {self.label!r} did not stop within {timeout:g} s "
                             "(its on_block does not return); the session goes on without it")
         if thread is not None and sub is not None and sub.discarded and not self.controller.latest_only \
-                and self.state != "failed":  # a failure is its own error
+                and self.state != ControllerState.FAILED:  # a failure is its own error
             self.report("warning", "inputs_unprocessed", f"controller {self.label!r} fell behind its input: "
                         f"{sub.discarded} input sample{'s' if sub.discarded != 1 else ''} got no output (the "
                         "computer did not keep up with the input rate)", samples=sub.discarded)
@@ -202,16 +213,16 @@ class ControllerRunner:
             sender, self._sender = self._sender, None
         if sender is not None:  # ends after the command it may be waiting for
             sender.join(timeout)
-        if self.state == "running":
-            self._set_state("stopped")
+        if self.state == ControllerState.RUNNING:
+            self._set_state(ControllerState.STOPPED)
 
     @property
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
-    def _set_state(self, state: str) -> None:
+    def _set_state(self, state: ControllerState) -> None:
         self.state = state
-        self.report("info", "state", f"controller {self.label!r} is {state}", state=state)  # the cause is its own event
+        self.report("info", "state", f"controller {self.label!r} is {state}", state=state.value)  # the cause is its own event
 
     def _run(self) -> None:
         ctx = ControllerContext(self)
@@ -242,7 +253,7 @@ class ControllerRunner:
                 inst.hold()
             except (MirrorlabError, OSError) as hold_error:
                 self.report("error", "hold_failed", f"{inst.device_name} could not be told to hold: {hold_error}")
-        self._set_state("failed")
+        self._set_state(ControllerState.FAILED)
 
     # -- commands -------------------------------------------------------------------------------
     def _check_declared(self, role: str, parameter: str) -> None:
@@ -287,7 +298,7 @@ class ControllerRunner:
     def _apply(self, role: str, parameter: str, value: Any, sample_time: float | None) -> Any:
         inst = self.instruments[role]
         try:
-            applied = inst.set(parameter, value)
+            applied = inst.set(parameter, value).wait()  # the latency runs to the acknowledgement
         except DeviceError as exc:
             self.commands_failed += 1
             self.report("warning", "setpoint_failed", f"controller {self.label!r}: {inst.device_name} "

@@ -47,7 +47,7 @@ def block_digests(rows: np.ndarray, per_block: int) -> list[bytes]:
     >>> len(block_digests(np.zeros((10, 2)), 4)), len(block_digests(np.float64(1.0), 4))
     (3, 1)
     """
-    data = memoryview(np.ascontiguousarray(rows).reshape(-1).view(np.uint8))  # the buffer itself: no copy
+    data = np.ascontiguousarray(rows).reshape(-1).view(np.uint8).data  # a memoryview of the buffer itself: no copy
     if np.ndim(rows) == 0:
         return [hashlib.sha256(data).digest()]
     step = per_block * (data.nbytes // len(rows) if len(rows) else 0)

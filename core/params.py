@@ -226,7 +226,7 @@ class Parameter:
         if self.bounds is not None and self.type in (int, float):
             lo, hi = self.bounds
             unit = f" {self.unit}" if self.unit else ""
-            flat = [coerced] if self.shape is None else list(_flatten(coerced))
+            flat: list[Any] = [coerced] if self.shape is None else list(_flatten(coerced))
             where = "" if self.shape is None else "an element: "
             for x in flat:
                 if lo is not None and x < lo:
@@ -392,6 +392,16 @@ class ParameterSet:
             if p.name == name:
                 return p
         raise KeyError(name)
+
+    @property
+    def setpoints(self) -> tuple[str, ...]:
+        """Names of the live parameters (declared ``live=True``), in declaration order: the set-points
+        an instrument accepts through :meth:`~mirrorlab.core.devices.Instrument.set`.
+
+        >>> ParameterSet(Parameter("rate", float, 1.0), Parameter("target", float, 0.0, live=True)).setpoints
+        ('target',)
+        """
+        return tuple(p.name for p in self.parameters if p.live)
 
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.parameters if not p.required}

@@ -48,12 +48,16 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .algorithms import AlgorithmExecutor
 from .errors import MirrorlabError, PluginError, Problem, StoppedOnRequest, ValidationError
 from .params import Parameter, ParameterSet
 from .registry import Registry, get_registry
 from .session import SIMULATOR_OPTIONS, Session
+
+if TYPE_CHECKING:
+    from .steps import Step
 
 SESSION_KEYS = ParameterSet(
     Parameter("description", str, "", help="what the session is"),
@@ -95,7 +99,7 @@ class ControllerPlan:
 class StepPlan:
     index: int
     action: str
-    cls: type
+    cls: type[Step]
     values: dict[str, Any]
 
 
@@ -245,17 +249,17 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
             problems.append(Problem(where, "each step needs action = \"...\"", file))
             continue
         try:
-            cls = registry.step(str(table["action"]))
+            step_cls = registry.step(str(table["action"]))
         except PluginError as exc:
             problems.append(Problem(f"{where}.action", str(exc), file))
             continue
-        rest = beside(folder, {k: v for k, v in table.items() if k != "action"}, cls.parameters)
-        values, more = cls.validate(rest, where, file, registry, labels)
+        rest = beside(folder, {k: v for k, v in table.items() if k != "action"}, step_cls.parameters)
+        values, more = step_cls.validate(rest, where, file, registry, labels)
         problems += more
-        if analysis and cls.records:
-            problems.append(Problem(f"{where}.action", f"{cls.name!r} records from instruments; a recipe run on an "
-                                    "existing session (--session) holds analysis steps only", file))
-        steps.append(StepPlan(i, cls.name, cls, values))
+        if analysis and step_cls.records:
+            problems.append(Problem(f"{where}.action", f"{step_cls.name!r} records from instruments; a recipe run on "
+                                    "an existing session (--session) holds analysis steps only", file))
+        steps.append(StepPlan(i, step_cls.name, step_cls, values))
     if analysis and instruments:
         problems.append(Problem("instruments", "a recipe run on an existing session (--session) declares no "
                                 "instruments; the session's recordings are its inputs", file))
@@ -295,7 +299,7 @@ def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry:
            problems: list[Problem], file: str, folder: Path) -> dict[str, Any] | None:
     """Validate ``[world]`` against the world parameters of the recipe's simulated instruments."""
     table = _table(data, "world", problems, file)
-    sets = {}
+    sets: dict[int, ParameterSet] = {}
     for plan in instruments:
         params = registry.instrument(plan.plugin).world_parameters
         if plan.simulate and params is not None:
@@ -356,7 +360,7 @@ def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], 
                                     f"it has: {', '.join(plans) or 'none'}", file))
             continue
         params = registry.instrument(plan.plugin).parameters
-        not_live = [n for n in commanded[role] if n not in params or not params[n].live]
+        not_live = [n for n in commanded[role] if n not in params.setpoints]
         if not_live:
             problems.append(Problem(f"{where}.instruments.{role}", f"{plan.plugin} {instrument!r} has no "
                                     f"live-settable {', '.join(not_live)}, which {cls.name} sets", file))
@@ -485,7 +489,8 @@ def check_on_session(recipe: Recipe, session: Session) -> None:
 
 
 def run_analysis(recipe: Recipe, path: Path, registry: Registry | None = None,
-                 on_session: Callable[[Session], None] | None = None, executor: Any = None) -> Path:
+                 on_session: Callable[[Session], object] | None = None,
+                 executor: AlgorithmExecutor | None = None) -> Path:
     """Run an analysis recipe's steps on an existing session file, appending their results; return its path.
 
     The recipe (loaded with ``analysis=True``) is logged with its path, hash and overrides; each

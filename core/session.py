@@ -43,7 +43,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .algorithms import Algorithm, ResultRef, RunContext, execute, label_problem
+from .algorithms import Algorithm, AlgorithmExecutor, ResultRef, RunContext, execute, label_problem
 from .clock import SessionClock, parse_utc, utc_now_iso
 from .controller_runtime import ControllerRunner
 from .controllers import Controller
@@ -154,7 +154,7 @@ class Session:
         #: called as ``executor(session, cls, inputs, params, context)`` with inputs as h5py datasets
         #: or arrays, returns the ``RunOutcome`` and each input's digest entry
         #: (:func:`~mirrorlab.core.digests.input_entry`); its ``provenance`` dict is stored as ``@executor``.
-        self.executor: Any = None
+        self.executor: AlgorithmExecutor | None = None
         for message in registry.notify("mirrorlab_session_opened", session=self):
             self.events.emit("warning", "session", "plugin_error", message)
 

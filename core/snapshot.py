@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from .controller_runtime import LatencyStats
-from .devices.instrument import Status
+from .controller_runtime import ControllerState, LatencyStats
+from .devices.instrument import InstrumentState, Status
 
 
 @dataclass(frozen=True)
@@ -23,7 +23,8 @@ class InstrumentSnapshot:
     label, plugin
         Its label in the session and its plugin name.
     state
-        ``idle``, ``connecting``, ``acquiring``, ``reconnecting``, ``failed`` or ``stopped``.
+        ``idle``, ``connecting``, ``acquiring``, ``reconnecting``, ``failed`` or ``stopped``
+        (an :class:`~mirrorlab.core.devices.InstrumentState`, equal to those strings).
     acquiring, recorded
         Whether it is started, and whether the current recording includes it.
     last_sample_time
@@ -42,7 +43,7 @@ class InstrumentSnapshot:
 
     label: str
     plugin: str
-    state: str
+    state: InstrumentState
     acquiring: bool
     recorded: bool
     last_sample_time: float | None
@@ -56,14 +57,14 @@ class InstrumentSnapshot:
 
 @dataclass(frozen=True)
 class ControllerSnapshot:
-    """One controller: ``state`` (``idle``, ``running``, ``failed``, ``stopped``), commands sent and
-    failed, latency statistics (s) of its recent set-points, and why it failed (``""``);
-    ``superseded_commands``: values given to ``ctx.send`` that a newer one replaced before they
-    were sent."""
+    """One controller: ``state`` (a :class:`~mirrorlab.core.controller_runtime.ControllerState`:
+    ``idle``, ``running``, ``failed``, ``stopped``), commands sent and failed, latency statistics (s)
+    of its recent set-points, and why it failed (``""``); ``superseded_commands``: values given to
+    ``ctx.send`` that a newer one replaced before they were sent."""
 
     label: str
     plugin: str
-    state: str
+    state: ControllerState
     commands: int
     failed_commands: int
     latency: LatencyStats | None

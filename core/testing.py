@@ -32,7 +32,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 import pytest
@@ -42,10 +42,13 @@ from .devices import Instrument, SerialInstrument, SimulatorServer
 from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError, ValidationError
 from .streams import Block, Emitter, StreamRouter, Subscription
 
+#: The instrument class a helper was given, and so the instance it hands back.
+I = TypeVar("I", bound=Instrument)
+
 
 @contextmanager
-def simulated(instrument_class: type[Instrument], settings: dict[str, Any] | None = None, transport: str = "pty",
-              seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[Instrument, SimulatorServer]]:
+def simulated(instrument_class: type[I], settings: dict[str, Any] | None = None, transport: str = "pty",
+              seed: int = 0, timeout: float = 1.0) -> Iterator[tuple[I, SimulatorServer]]:
     """Start ``instrument_class``'s simulator and yield ``(connected instrument, server)``.
 
     The simulator clock is FAST so modelled delays cost no wall time.
@@ -226,12 +229,12 @@ class InstrumentConformance:
     def test_live_parameters_are_set_one_at_a_time(self, sim: tuple[SerialInstrument, SimulatorServer]) -> None:
         inst, _ = sim
         inst.configure()
-        for p in inst.parameters:
-            if p.live:
-                before = {k: v for k, v in inst.settings.items() if k != p.name}
-                assert inst.set(p.name, inst.settings[p.name]) == inst.settings[p.name]
-                assert {k: v for k, v in inst.settings.items() if k != p.name} == before
-        fixed = [p.name for p in inst.parameters if not p.live]
+        for name in inst.parameters.setpoints:
+            before = {k: v for k, v in inst.settings.items() if k != name}
+            status = inst.set(name, inst.settings[name])
+            assert status.wait() == inst.settings[name] and status.success, status
+            assert {k: v for k, v in inst.settings.items() if k != name} == before
+        fixed = [p.name for p in inst.parameters if p.name not in inst.parameters.setpoints]
         if fixed:
             with pytest.raises(ValidationError, match="not live-settable"):
                 inst.set(fixed[0], inst.settings[fixed[0]])

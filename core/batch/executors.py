@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import h5py
 
-from ..algorithms import Algorithm, RunContext, RunOutcome, execute
+from ..algorithms import Algorithm, InputDigests, RunContext, RunOutcome, execute
 from ..digests import block_digests, block_rows, combine, input_entry, read_hashed
 from ..store import files
 from .chunks import chunk_bounds, merge_frames
@@ -34,10 +34,6 @@ if TYPE_CHECKING:
 CHUNK_FRAMES = 1000
 
 
-#: An input's digest entry (:func:`~mirrorlab.core.digests.input_entry`), by input name.
-Digests = dict[str, dict[str, Any]]
-
-
 class Executor:
     """Runs algorithms in this process, noting ``provenance`` (JSON-able) with every result."""
 
@@ -45,7 +41,7 @@ class Executor:
         self.provenance = dict(provenance)
 
     def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
-                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, Digests]:
+                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, InputDigests]:
         arrays, digests = read_hashed(inputs)
         return execute(cls, arrays, params, context), digests
 
@@ -83,7 +79,7 @@ class ChunkedExecutor(Executor):
         self.chunked: list[tuple[str, int]] = []
 
     def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
-                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, Digests]:
+                 params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, InputDigests]:
         values = cls.parameters.validate(dict(params), where=f"{cls.name}.parameters")
         split = [n for n in cls.frame_wise(values) if isinstance(inputs.get(n), h5py.Dataset)]
         lengths = {inputs[n].shape[0] if inputs[n].ndim else 0 for n in split}

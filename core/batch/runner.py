@@ -98,7 +98,8 @@ def process_file(recipe: str, overrides: Sequence[str], source: str, output: str
 
 def plan_outputs(inputs: Sequence[Path], out_dir: Path, overwrite: bool = False) -> list[Path]:
     """Where each input's copy goes: ``out_dir/<name>``; names must differ and never be the input itself."""
-    problems, seen = [], {}
+    problems: list[Problem] = []
+    seen: dict[str, Path] = {}
     outputs = [out_dir / p.name for p in inputs]
     for source, target in zip(inputs, outputs):
         if target.name in seen:

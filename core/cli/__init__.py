@@ -16,7 +16,7 @@ import os
 import sys
 import warnings
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from ..errors import MirrorlabError, MirrorlabWarning, ValidationError
 from ..version import mirrorlab_version
@@ -38,7 +38,7 @@ Add --debug anywhere for tracebacks and debug logging."""
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # argparse's usage errors: one line, exit 2
+    def error(self, message: str) -> NoReturn:  # argparse's usage errors: one line, exit 2
         self.print_usage(sys.stderr)
         print(f"mirrorlab: error: {message}", file=sys.stderr)
         sys.exit(EXIT_USAGE)

@@ -77,10 +77,10 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
             rsub.add_parser(name, add_help=False)
             continue
         try:
-            cls = reg.instrument(name)
+            inst_cls = reg.instrument(name)
         except Exception:
             continue
-        p = rsub.add_parser(name, help=cls.description, description=cls.description)
+        p = rsub.add_parser(name, help=inst_cls.description, description=inst_cls.description)
         p.add_argument("--out", type=Path, required=True, help="session file to create")
         add_overwrite_option(p)
         p.add_argument("--seconds", type=duration, default=RECORD_SECONDS, metavar="S",
@@ -91,7 +91,7 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_allow_empty_option(p)
-        add_parameter_options(p, cls.parameters)
+        add_parameter_options(p, inst_cls.parameters)
         p.set_defaults(func=record, instrument_name=name)
 
 

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from ..errors import Problem, ValidationError
 from ..registry import KINDS, get_registry
 from .options import parameter_facts, plain
+
+if TYPE_CHECKING:
+    from ..devices import Instrument
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -89,12 +92,12 @@ def simulator_problem(cls: Any) -> str:
 
 def doctor(args: argparse.Namespace) -> int:
     reg = get_registry()
-    rows = []
+    rows: list[dict[str, Any]] = []
     declarations = reg.undeclared()  # a name a plugin provides but does not declare is found only by listing
     for p in reg.plugins.values():
         simulators, problems = {}, [m for m in declarations if m.startswith(f"plugin {p.name!r} ")]
         for name in p.provides.get("instrument", []):
-            cls = reg.providers("instrument", name)[0].cls
+            cls = cast("type[Instrument]", reg.providers("instrument", name)[0].cls)  # the first, even of a conflict
             simulators[name] = cls.has_simulator()
             problems += [m for m in [simulator_problem(cls)] if m]
         rows.append({"name": p.name, "entry_point": p.source, "distribution": p.distribution,

@@ -116,10 +116,10 @@ def _replaced(data: object, where: str = "") -> list[str]:
 
 def tree(args: argparse.Namespace) -> int:
     f, _ = files.open_readonly(args.file)
-    items = []
+    items: list[dict[str, Any]] = []
     with f, files.reading(args.file):
         def visit(name: str, obj: h5py.HLObject) -> None:
-            entry = {"path": "/" + name, "type": "group" if isinstance(obj, h5py.Group) else "dataset",
+            entry: dict[str, Any] = {"path": "/" + name, "type": "group" if isinstance(obj, h5py.Group) else "dataset",
                      "attrs": sorted(obj.attrs)}
             if isinstance(obj, h5py.Dataset):
                 entry.update(shape=list(obj.shape), dtype=str(obj.dtype))

@@ -16,7 +16,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from ..errors import PluginError, Problem, SessionError, ValidationError
+from ..errors import PluginError, Problem, ValidationError
 from ..registry import get_registry
 
 DESCRIPTION = (
@@ -69,11 +69,7 @@ def simulate(args: argparse.Namespace) -> int:
     if not cls.needs_port(settings):
         raise ValidationError([Problem("--set", f"{cls.name} with these settings is no serial device (a file, "
                                        "camera or virtual source is its own simulation); there is nothing to serve")])
-    make = getattr(cls, "make_simulator", None)
-    model = make(settings, args.seed) if make is not None else cls.simulator(seed=args.seed) \
-        if getattr(cls, "simulator", None) is not None else None
-    if model is None:
-        raise SessionError(f"instrument plugin {cls.name!r} ships no simulator")
+    model = cls.make_simulator(settings, args.seed)  # PluginError if the plugin ships none
     if args.pty is not None and not args.pty.parent.is_dir():
         raise ValidationError([Problem("--pty", f"folder {args.pty.parent} does not exist; give a path in an "
                                        "existing folder (the pseudo-terminal is linked there)")])

@@ -14,10 +14,11 @@ build TUI forms and run the conformance kit::
 
 Lifecycle: ``connect → identify → configure → streams → start(emit) … stop → close``; ``read``
 and ``status`` may be called any time after ``connect``; :meth:`set` changes one live parameter
-(a set-point) at any time. Every call is bounded by ``timeout``.
+(a set-point) at any time, returning a :class:`~mirrorlab.core.devices.SetStatus` at once. Every
+call is bounded by ``timeout``.
 
 While started, :meth:`acquire` runs in the instrument's own thread and the instrument's
-:attr:`~Instrument.state` says what it is doing (:data:`STATES`). Errors decide their own fate:
+:attr:`~Instrument.state` says what it is doing (:class:`InstrumentState`). Errors decide their own fate:
 
 * *transient* (:class:`DeviceDisconnected`, :class:`DeviceTimeout`, :class:`ProtocolError`): the
   base class reports it, reconnects with exponential backoff within the reconnect budget
@@ -33,8 +34,10 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from enum import StrEnum
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
@@ -52,11 +55,31 @@ from ..errors import (
 from ..params import ParameterSet
 from ..streams import StreamSpec
 from .protocol import LineClient, Reply
+from .setpoint import SetStatus
 from .simulator import LineSimulator, SimulatedWorld
 from .transport import open_port
 
-#: Lifecycle states of an instrument (:attr:`Instrument.state`).
-STATES = ("idle", "connecting", "acquiring", "reconnecting", "failed", "stopped")
+
+class InstrumentState(StrEnum):
+    """Lifecycle state of an instrument (:attr:`Instrument.state`).
+
+    A ``str``: a state compares equal to its value (``state == "acquiring"``) and is stored and
+    printed as it (event data, JSON, the console), so the values are part of the session file format.
+    """
+
+    IDLE = "idle"                  #: connected (or not yet), not acquiring
+    CONNECTING = "connecting"      #: opening the connection
+    ACQUIRING = "acquiring"        #: its acquisition thread runs
+    RECONNECTING = "reconnecting"  #: lost the device while acquiring, reconnecting within the budget
+    FAILED = "failed"              #: stopped by a permanent error (:attr:`Instrument.failed`)
+    STOPPED = "stopped"            #: acquisition ended (told to, the source ended, or disconnected)
+
+
+#: The value of each lifecycle state, for callers that name one by its string (``set_state("idle")``);
+#: a test checks that it lists exactly the values of :class:`InstrumentState`.
+StateName = Literal["idle", "connecting", "acquiring", "reconnecting", "failed", "stopped"]
+#: Lifecycle states of an instrument, as their values.
+STATES: tuple[str, ...] = tuple(s.value for s in InstrumentState)
 #: Errors after which reconnecting may help.
 TRANSIENT = (DeviceDisconnected, DeviceTimeout, ProtocolError)
 
@@ -148,11 +171,14 @@ class Instrument(ABC):
         self.reconnect_deadline: float | None = None
         #: The newest :class:`Status`, cached by the acquisition thread (never a device call to read).
         self.last_status: Status | None = None
-        self.state = "idle"
+        self.state: InstrumentState = InstrumentState.IDLE
         self._status_due = 0.0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
-        self._set_lock = threading.Lock()  # one set-point at a time, whichever thread sends it
+        # sends the set-points, one at a time in the order given, whichever thread gives them; made on
+        # the first set() (most instruments have no set-point); its idle thread ends with the instrument
+        self._setpoints: ThreadPoolExecutor | None = None
+        self._setpoints_lock = threading.Lock()
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.label!r} port={self.port!r}>"
@@ -230,7 +256,8 @@ class Instrument(ABC):
     @classmethod
     def has_simulator(cls) -> bool:
         """Whether :meth:`make_simulator` can build a model: :attr:`simulator` is set or it is overridden."""
-        return cls.simulator is not None or cls.make_simulator.__func__ is not Instrument.make_simulator.__func__
+        overridden = any("make_simulator" in vars(c) for c in cls.__mro__[:cls.__mro__.index(Instrument)])
+        return cls.simulator is not None or overridden
 
     def configure(self, **changes: Any) -> dict[str, Any]:
         """Validate ``changes`` against :attr:`parameters`, apply them, return all settings."""
@@ -239,37 +266,56 @@ class Instrument(ABC):
         self.apply_settings(self.settings)
         return dict(self.settings)
 
-    def set(self, name: str, value: Any, timeout: float | None = None) -> Any:
-        """Change one live-settable parameter (a set-point) and return when the device acknowledged it.
+    def set(self, name: str, value: Any, timeout: float | None = None) -> SetStatus:
+        """Send one live-settable parameter (a set-point); return at once, with its :class:`SetStatus`.
 
-        Only ``name`` is validated (against its declaration and the other current settings) and
-        sent; nothing else is re-sent. Safe to call from any thread, also while acquiring.
+        Only ``name`` is validated (against its declaration and the other current settings), now, in
+        the calling thread; the instrument's set-point thread then sends it, and nothing else, to the
+        device. Set-points are sent one at a time, in the order given, whichever thread gives them;
+        safe to call from any thread, also while acquiring. ``set(...).wait()`` returns when the
+        device acknowledged it, with the applied value, or raises the device's error.
 
         Parameters
         ----------
         name
-            A parameter declared with ``live=True``.
+            One of the instrument's set-points: a parameter declared with ``live=True``
+            (:attr:`ParameterSet.setpoints <mirrorlab.core.params.ParameterSet.setpoints>`).
         value
             New value, in the parameter's unit (or a ``"<number> <unit>"`` string).
         timeout
-            Seconds allowed for the acknowledgement (default: the instrument's ``timeout``).
+            Seconds the device has to acknowledge it once sent (default: the instrument's ``timeout``);
+            past it the status fails with :class:`DeviceTimeout`.
 
-        Returns the value as validated and applied.
+        Raises
+        ------
+        ValidationError
+            ``name`` is not a set-point of this instrument, or ``value`` is not valid for it.
         """
-        if name not in self.parameters:
-            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
-                                           f"{self.name} has no parameter {name!r}")])
-        if not self.parameters[name].live:
-            live = [p.name for p in self.parameters if p.live]
-            raise ValidationError([Problem(f"instruments.{self.label}.{name}",
-                                           "not live-settable; change it with configure() "
-                                           f"(live-settable: {', '.join(live) or 'none'})")])
+        setpoints = self.parameters.setpoints
+        if name not in setpoints:
+            problem = (f"{self.name} has no parameter {name!r}" if name not in self.parameters else
+                       f"not live-settable; change it with configure() (live-settable: {', '.join(setpoints) or 'none'})")
+            raise ValidationError([Problem(f"instruments.{self.label}.{name}", problem)])
         settings = self.parameters.validate({**self.settings, name: value},
                                             where=f"instruments.{self.label}.settings")
-        with self._set_lock:
-            self.apply_setpoint(name, settings[name], self.timeout if timeout is None else timeout)
-            self.settings[name] = settings[name]
-        return settings[name]
+        status = SetStatus(self.device_name, name, settings[name])
+        with self._setpoints_lock:
+            if self._setpoints is None:
+                self._setpoints = ThreadPoolExecutor(1, thread_name_prefix=f"set-points {self.label}")
+            self._setpoints.submit(self._send_setpoint, status, self.timeout if timeout is None else timeout)
+        return status
+
+    def _send_setpoint(self, status: SetStatus, timeout: float) -> None:
+        """In the set-point thread: send one validated set-point, then finish its status."""
+        error: Exception | None = None
+        try:
+            self.apply_setpoint(status.name, status.value, timeout)
+            self.settings[status.name] = status.value
+        except Exception as exc:  # the status carries it to whoever waits (a controller reports it)
+            error = exc
+        for failed in status.finish(error):
+            self.report("error", "setpoint_callback_failed", f"{self.device_name}: a callback of the set-point "
+                        f"{status.name} raised {type(failed).__name__}: {failed}")
 
     def apply_setpoint(self, name: str, value: Any, timeout: float) -> None:
         """Send one validated live parameter and wait up to ``timeout`` s for the acknowledgement.
@@ -302,14 +348,15 @@ class Instrument(ABC):
         self.stop()
         self.close()
 
-    def set_state(self, state: str, message: str = "") -> None:
-        """Enter lifecycle ``state`` (one of :data:`STATES`) and report the change as a ``state`` event."""
+    def set_state(self, state: InstrumentState | StateName, message: str = "") -> None:
+        """Enter lifecycle ``state`` and report the change as a ``state`` event."""
         if state not in STATES:
             raise ValueError(f"state must be one of {STATES}, not {state!r}")
+        state = InstrumentState(state)
         if state != self.state:
             self.state = state
             # info: the cause (connection_lost, failed...) is its own event at its own level
-            self.report("info", "state", message or f"{self.device_name} is {state}", state=state)
+            self.report("info", "state", message or f"{self.device_name} is {state}", state=state.value)
 
     def start(self, emit: Emit) -> None:
         """Start :meth:`acquire` in the instrument's thread (reconnecting on connection loss)."""
@@ -319,7 +366,7 @@ class Instrument(ABC):
         self.failed = None
         self._thread = threading.Thread(target=self._run, args=(_StatusCaching(emit, self),),
                                         name=f"acquire {self.label}", daemon=True)
-        self.set_state("acquiring")
+        self.set_state(InstrumentState.ACQUIRING)
         self._thread.start()
 
     def stop(self, timeout: float | None = None) -> None:
@@ -340,11 +387,11 @@ class Instrument(ABC):
                 self.failed = DeviceTimeout(f"{self.device_name}: acquisition did not stop within "
                                             f"{self.stop_timeout:g} s of being told to")
                 self.report("error", "stop_timeout", f"{self.failed}; power-cycle the device before using it again")
-                self.set_state("failed")
+                self.set_state(InstrumentState.FAILED)
                 return
         self._thread = None
-        if self.state in ("acquiring", "reconnecting"):
-            self.set_state("stopped")
+        if self.state in (InstrumentState.ACQUIRING, InstrumentState.RECONNECTING):
+            self.set_state(InstrumentState.STOPPED)
 
     def interrupt(self) -> None:
         """Make a running device command end now (called by :meth:`stop`); default: nothing to interrupt."""
@@ -381,7 +428,7 @@ class Instrument(ABC):
             try:
                 self.acquire(emit, self._stop)
                 if not self._stop.is_set():
-                    self.set_state("stopped", f"{self.device_name}: the source has ended")
+                    self.set_state(InstrumentState.STOPPED, f"{self.device_name}: the source has ended")
                 return
             except TRANSIENT as exc:
                 if self._stop.is_set():
@@ -401,11 +448,11 @@ class Instrument(ABC):
     def _fail(self, exc: BaseException, what: str) -> None:
         self.failed = exc
         self.report("error", "failed", f"{self.device_name} {what}: {exc}")
-        self.set_state("failed")
+        self.set_state(InstrumentState.FAILED)
 
     def _reconnect_with_backoff(self) -> bool:
         """Reconnect within :attr:`reconnect_budget`; ``False`` if stopped, out of budget or permanent."""
-        self.set_state("reconnecting")
+        self.set_state(InstrumentState.RECONNECTING)
         budget = self.reconnect_budget
         self.reconnect_deadline = None if budget is None else time.monotonic() + budget
         delay = 0.05
@@ -430,7 +477,7 @@ class Instrument(ABC):
                     return False
                 self.reconnects += 1
                 self.report("info", "reconnected", f"{self.device_name} reconnected", reconnects=self.reconnects)
-                self.set_state("acquiring")
+                self.set_state(InstrumentState.ACQUIRING)
                 return True
             return False
         finally:

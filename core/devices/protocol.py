@@ -15,17 +15,20 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import Any, TypeVar, overload
 
 import serial
 
 from ..errors import DeviceDisconnected, DeviceReplyError, DeviceTimeout, ProtocolError
+from .transport import SerialPort
 
 try:  # pyserial's POSIX back end lets termios.error (not an OSError) out of flush() on a hung-up tty
     from termios import error as _TermiosError
     _PORT_ERRORS: tuple[type[Exception], ...] = (serial.SerialException, OSError, _TermiosError)
 except ImportError:  # Windows
     _PORT_ERRORS = (serial.SerialException, OSError)
+#: How a port closed by another thread meanwhile fails (a socket's fd -1: ValueError; gone: TypeError...).
+_CLOSED_PORT_ERRORS: tuple[type[Exception], ...] = (*_PORT_ERRORS, TypeError, AttributeError, ValueError)
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +45,12 @@ class Reply:
     fields: list[str]
     data: list[str] = field(default_factory=list)
 
-    def field(self, i: int, name: str = "field", kind: Callable[[str], T] = str) -> T:  # type: ignore[assignment]
+    @overload
+    def field(self, i: int, name: str = "field") -> str: ...
+    @overload
+    def field(self, i: int, name: str, kind: Callable[[str], T]) -> T: ...
+
+    def field(self, i: int, name: str = "field", kind: Callable[[str], Any] = str) -> Any:
         """Field ``i`` converted by ``kind`` (``int``, ``float``...); :class:`ProtocolError` if absent or malformed."""
         try:
             text = self.fields[i]
@@ -79,7 +87,7 @@ class LineClient:
         Called from the reader thread with each ``!`` line (without the ``!``).
     """
 
-    def __init__(self, port: serial.SerialBase, device: str = "device", timeout: float = 2.0,
+    def __init__(self, port: SerialPort, device: str = "device", timeout: float = 2.0,
                  on_unsolicited: Callable[[str], None] | None = None) -> None:
         self.port = port
         self.device = device
@@ -102,8 +110,7 @@ class LineClient:
         while not self._stop.is_set():
             try:
                 chunk = self.port.read(self.port.in_waiting or 1)
-            # a port closed by another thread fails in many ways (socket fd -1: ValueError)
-            except (*_PORT_ERRORS, TypeError, AttributeError, ValueError) as exc:
+            except _CLOSED_PORT_ERRORS as exc:
                 if not self._stop.is_set():
                     self._lines.put(_Hangup(exc))
                 return
@@ -187,8 +194,7 @@ class LineClient:
         try:
             self.port.write(data)
             self.port.flush()
-        # a port closed by another thread meanwhile fails in many ways (socket gone: TypeError)
-        except (*_PORT_ERRORS, TypeError, AttributeError, ValueError) as exc:
+        except _CLOSED_PORT_ERRORS as exc:
             raise DeviceDisconnected(f"{self.device}: write failed ({exc}); check the cable and power") from exc
 
     def _drain_stale(self) -> None:

@@ -19,13 +19,40 @@ import tty
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol, cast
 
 import serial
 
 from ..errors import DeviceDisconnected
 
 
-def open_port(url: str, baudrate: int = 115200, timeout: float = 0.05) -> serial.SerialBase:
+class SerialPort(Protocol):
+    """What a driver uses of an open port (:func:`open_port`), in bytes. Every pyserial back end has
+    it (a tty, ``socket://``, ``loop://``), though pyserial's base class declares no ``in_waiting``."""
+
+    @property
+    def in_waiting(self) -> int:
+        """Bytes received and not read yet."""
+        ...
+
+    def read(self, size: int = 1, /) -> bytes:
+        """Up to ``size`` bytes; fewer (or none) when the port's read timeout passes first."""
+        ...
+
+    def write(self, data: bytes, /) -> int | None:
+        """Queue ``data`` for sending."""
+        ...
+
+    def flush(self) -> None:
+        """Wait until everything written has been sent."""
+        ...
+
+    def close(self) -> None:
+        """Close the port (idempotent)."""
+        ...
+
+
+def open_port(url: str, baudrate: int = 115200, timeout: float = 0.05) -> SerialPort:
     """Open a pyserial URL or device path for a driver.
 
     Raises
@@ -34,7 +61,7 @@ def open_port(url: str, baudrate: int = 115200, timeout: float = 0.05) -> serial
         The port does not exist or cannot be opened; the message says what to check.
     """
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=2.0)
+        return cast(SerialPort, serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=2.0))
     except (serial.SerialException, OSError, ValueError) as exc:
         raise DeviceDisconnected(
             f"cannot open port {url!r}: {exc}. Check that the device is plugged in and powered, "

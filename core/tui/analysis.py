@@ -9,7 +9,7 @@ the file is read and written only in worker threads.
 from __future__ import annotations
 
 import json
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from rich.text import Text
 from textual.app import ComposeResult
@@ -39,7 +39,8 @@ def guess_input(port: Port, paths: list[str]) -> str | None:
     recorded stream of that name (``/instruments/<label>/<name>/data``), else none."""
     outputs = [p for p in paths if p.startswith("/results/") and p.rsplit("/", 1)[-1] == port.name]
     streams = [p for p in paths if p.endswith(f"/{port.name}/data")]
-    return (outputs or streams or [None])[-1]
+    found = outputs or streams
+    return found[-1] if found else None
 
 
 def result_text(result: ResultData) -> str:
@@ -232,12 +233,11 @@ class AnalysisScreen(Screen[None]):
         self.app.in_worker("read the session's datasets", self._datasets, self._got_datasets, owner=self)
 
     def _show_result(self, outcome: object) -> None:
-        ref, text = outcome  # type: ignore[misc]
+        ref, text = cast(tuple[ResultRef, str], outcome)  # what _run returns
         result = self.query_one("#result", Static)
         result.update(text)
         result.scroll_visible()
-        severity = "information" if ref.status == "ok" else "warning"
-        self.app.notify(f"{ref.path}: {ref.status}", severity=severity)
+        self.app.notify(f"{ref.path}: {ref.status}", severity="information" if ref.status == "ok" else "warning")
         self.app.in_worker("read the session's datasets", self._datasets, self._got_datasets, owner=self)
 
     def refresh_status(self) -> None:

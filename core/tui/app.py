@@ -230,8 +230,8 @@ class MirrorlabApp(App[int]):
                 if self._shown.get((source, column)) == value:
                     continue
                 self._shown[(source, column)] = value
-                if column == "trend":
-                    value = Sparkline(list(value), width=12) if value else ""
+                if column == "trend":  # value is recent, or () for fewer than two samples
+                    value = Sparkline(list(recent), width=12) if value else ""
                 table.update_cell(source, column, value)
 
     def _update_identity(self) -> None:

@@ -12,7 +12,7 @@ Units: pixels, x right, y down.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -216,7 +216,7 @@ class CameraScreen(Screen[None]):
         return Pixels.from_image(image), f"{where} · {found}{mirror}"
 
     def _shown(self, outcome: object) -> None:
-        pixels, status = outcome  # type: ignore[misc]
+        pixels, status = cast("tuple[Pixels, str]", outcome)  # what _draw returns
         self.query_one("#frame", Static).update(pixels)
         self._status(status)
 

@@ -66,8 +66,7 @@ class SourceScreen(Screen[None]):
         yield Static(id="head", markup=False)
         inst = session.instruments.get(self.source)
         if inst is not None:
-            live = {p.name for p in inst.parameters if p.live}
-            yield ParameterForm(inst.parameters, inst.settings, live, id="form")
+            yield ParameterForm(inst.parameters, inst.settings, set(inst.parameters.setpoints), id="form")
         else:
             controller = session.controllers[self.source].controller
             yield ParameterForm(controller.parameters, controller.settings, set(), id="form")
@@ -112,7 +111,7 @@ class SourceScreen(Screen[None]):
             return
         value = event.value
         self.app.in_worker(f"set {self.source}.{name}",
-                           lambda: self.app.model.set_parameter(self.source, name, value),
+                           lambda: self.app.model.set_parameter(self.source, name, value).wait(),
                            lambda applied: self.app.notify(f"{self.source}.{name} = {applied:g} acknowledged"
                                                            if isinstance(applied, float) else
                                                            f"{self.source}.{name} = {applied} acknowledged"))

@@ -11,6 +11,7 @@ from textual.containers import Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Static
 
+from ..devices import InstrumentState
 from ..snapshot import InstrumentSnapshot
 
 #: The dashboard's own keys, as the help shows them (the screens' keys are added by the app).
@@ -87,15 +88,16 @@ class FaultDialog(_Dialog):
 
     def __init__(self, label: str, watch: Callable[[], InstrumentSnapshot | None]) -> None:
         super().__init__(f"{label}: connection lost", "", "warning")
-        self.label, self.watch = label, watch
+        # not self.watch: that is Textual's DOMNode.watch, which this would hide
+        self.label, self.newest = label, watch
 
     def on_mount(self) -> None:
         self.refresh_text()
         self.set_interval(0.25, self.refresh_text)
 
     def refresh_text(self) -> None:
-        snap = self.watch()
-        if snap is None or snap.state == "acquiring":
+        snap = self.newest()
+        if snap is None or snap.state == InstrumentState.ACQUIRING:
             self.app.notify(f"{self.label} is back: reconnected, acquiring again")
             self.dismiss(None)
             return
@@ -104,7 +106,7 @@ class FaultDialog(_Dialog):
 
 def fault_text(snap: InstrumentSnapshot) -> str:
     """What the fault dialog says about an instrument that dropped out (or failed)."""
-    if snap.state == "failed":
+    if snap.state == InstrumentState.FAILED:
         return (f"{snap.label} ({snap.plugin}) has failed: {snap.error or 'no reason given'}.\n\n"
                 "Check the cable and the power of the device, then press p to acquire again.\n\n(esc to close)")
     left = snap.reconnect_seconds_left

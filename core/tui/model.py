@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..algorithms import ResultRef
+from ..devices import SetStatus
 from ..errors import MirrorlabError, SessionError
 from ..events import Event
 from ..recipes import Recipe, StepPlan, add_devices, check_on_session, load_recipe, recipe_record, run_steps
@@ -326,8 +327,9 @@ class Console:
         finally:
             self.running = None
 
-    def set_parameter(self, source: str, name: str, value: Any) -> Any:
-        """Send one live parameter as a set-point; returns the value applied (in its unit)."""
+    def set_parameter(self, source: str, name: str, value: Any) -> SetStatus:
+        """Send one live parameter as a set-point; returns at once, with its status (its ``wait()`` returns
+        the value applied, in its unit)."""
         return self.session.instruments[source].set(name, value)
 
     def close(self) -> None:

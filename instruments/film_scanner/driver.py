@@ -26,7 +26,7 @@ from mirrorlab.core import (
     ProtocolError,
     StreamSpec,
 )
-from mirrorlab.core.devices import Emit, Identity, Reporter, SerialInstrument, Status
+from mirrorlab.core.devices import Emit, Identity, Reporter, SerialInstrument, SimulatedWorld, Status
 from mirrorlab.core.devices.wire import parse_data_line
 from mirrorlab.instruments.virtual_lab import SCENE_NAMES
 
@@ -94,8 +94,10 @@ class FilmScanner(SerialInstrument):
         return settings.get("source", "fscan") == "fscan"
 
     @classmethod
-    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> FilmScannerModel:
-        """A simulator for these settings: the film is made of ``path``'s images if given, else generated."""
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int,
+                       world: SimulatedWorld | None = None) -> FilmScannerModel:
+        """A simulator for these settings: the film is made of ``path``'s images if given, else generated
+        (its own scene: the scanner takes no part in a shared ``world``)."""
         values = cls.parameters.validate(dict(settings))
         if values["path"]:
             film = Film.from_images(load_images(values["path"]))

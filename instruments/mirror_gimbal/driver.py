@@ -23,6 +23,11 @@ from .model import MirrorGimbalModel
 
 AXES = ("h", "v")
 LIMIT_RAD = math.radians(35.0)
+#: The live set-point of each axis: the mirror angle it turns to in mode ``pos`` (declared ``live=True``
+#: below). Set-points are looked up here, never parsed from their names.
+POSITION_SETPOINTS = {"h": "h_angle", "v": "v_angle"}
+#: Set-point -> the axis it turns.
+SETPOINT_AXIS = {name: axis for axis, name in POSITION_SETPOINTS.items()}
 
 
 def parse_sample(line: str) -> tuple[str, float, np.ndarray]:
@@ -98,14 +103,14 @@ class MirrorGimbal(StreamingInstrument):
             self.query(f"{a}:THR {settings['threshold']}")
             mode = settings[f"mode_{axis}"]
             if mode == "pos":
-                self.apply_setpoint(f"{axis}_angle", settings[f"{axis}_angle"], self.timeout)
+                name = POSITION_SETPOINTS[axis]
+                self.apply_setpoint(name, settings[name], self.timeout)
             else:
                 self.query(f"MODE {a} {mode.upper()}")
 
     def apply_setpoint(self, name: str, value: Any, timeout: float) -> None:
         """``POS <H|V> <deg>``: the mirror turns to ``value`` rad (mode POS); returns on the ``OK``."""
-        axis = name.split("_")[0].upper()
-        self.query(f"POS {axis} {math.degrees(value):.4f}", timeout)
+        self.query(f"POS {SETPOINT_AXIS[name].upper()} {math.degrees(value):.4f}", timeout)
 
     def hold(self) -> None:
         """Brake both axes at their present angles (``MODE <H|V> HOLD``)."""

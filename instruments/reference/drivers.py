@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from mirrorlab.core import DeviceError, Parameter, ParameterSet, StreamSpec
-from mirrorlab.core.devices import StreamingInstrument, StreamSample
+from mirrorlab.core.devices import SimulatedWorld, StreamingInstrument, StreamSample
 
 from .models import ActuatorModel, AngleSourceModel, ChainSourceModel
 
@@ -137,8 +137,10 @@ class ChainSource(_StreamingInstrument):
         return [j.strip() for j in self.settings["joints"].split(",") if j.strip()]
 
     @classmethod
-    def make_simulator(cls, settings: Mapping[str, Any], seed: int) -> ChainSourceModel:
-        """A simulator playing ``motion`` (or the generated arm) with the joints ``joints`` names."""
+    def make_simulator(cls, settings: Mapping[str, Any], seed: int,
+                       world: SimulatedWorld | None = None) -> ChainSourceModel:
+        """A simulator playing ``motion`` (or the generated arm) with the joints ``joints`` names (no part
+        in a shared ``world``)."""
         from .chains import simulated_chain
 
         values = cls.parameters.validate(dict(settings))

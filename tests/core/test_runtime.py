@@ -141,7 +141,7 @@ def test_set_sends_one_parameter_and_nothing_else(loop: Session) -> None:
     with loop.simulator("act").lock:
         model.rate_hz = 7.0  # changed on the device itself: re-sending settings would undo it
     converted = roundoff(scale=np.radians(10), ops=2)        # 10 deg -> rad: a product, rounded
-    assert act.set("target", "10 deg") == pytest.approx(np.radians(10), abs=converted)
+    assert act.set("target", "10 deg").wait() == pytest.approx(np.radians(10), abs=converted)
     assert model.target == round(np.radians(10) * 1e6) and model.rate_hz == 7.0
     with pytest.raises(ValidationError, match="not live-settable; change it with configure"):
         act.set("rate", 20.0)

@@ -34,7 +34,7 @@ def test_a_served_simulator_answers_the_driver_until_interrupted(tmp_path: Path,
         act.connect()
         assert act.identify().kind == "ACTU"
         act.configure()
-        assert act.set("target", 0.25) == 0.25 and act.query("TGT?").fields == ["250000"]
+        assert act.set("target", 0.25).wait() == 0.25 and act.query("TGT?").fields == ["250000"]
         act.close()
     finally:
         proc.send_signal(stop)
