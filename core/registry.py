@@ -40,7 +40,7 @@ import importlib.metadata as md
 import traceback
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal, overload
+from typing import TYPE_CHECKING, Any, Literal, cast, overload
 
 import pluggy
 
@@ -211,7 +211,7 @@ class Registry:
         impls = getattr(self.pm.hook, hook).get_hookimpls()  # pluggy keeps them in reverse call order
         return [i.plugin_name for i in reversed(impls) if not (i.hookwrapper or i.wrapper)]
 
-    def _caller(self, hook: str, plugin: str) -> Callable[..., list[Any]] | None:
+    def _caller(self, hook: str, plugin: str) -> Callable[..., Any] | None:
         """The hook ``hook`` of ``plugin`` alone, wrapped by every hook wrapper of the hook, or None if
         ``plugin`` does not implement it.
 
@@ -278,7 +278,7 @@ class Registry:
         from .params import ParameterSet
 
         if not isinstance(getattr(cls, "parameters", None), ParameterSet):
-            raise PluginError(f"plugin {plugin!r}: {kind} {cls.name!r}: `parameters` must be a ParameterSet")
+            raise PluginError(f"plugin {plugin!r}: {kind} {cast(Any, cls).name!r}: `parameters` must be a ParameterSet")
         if kind == "algorithm":
             from .algorithms import role_problem
 

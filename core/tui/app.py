@@ -230,9 +230,10 @@ class MirrorlabApp(App[int]):
                 if self._shown.get((source, column)) == value:
                     continue
                 self._shown[(source, column)] = value
+                shown: object = value
                 if column == "trend":  # value is recent, or () for fewer than two samples
-                    value = Sparkline(list(recent), width=12) if value else ""
-                table.update_cell(source, column, value)
+                    shown = Sparkline(list(recent), width=12) if value else ""
+                table.update_cell(source, column, shown)
 
     def _update_identity(self) -> None:
         table = self.query_one("#sources", DataTable)
