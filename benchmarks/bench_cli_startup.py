@@ -8,7 +8,11 @@ two baselines measured in the same run: ``python -c pass`` (the interpreter alon
 ``python -c "import numpy"`` (what any scientific command pays at least). Goal: ``--version``
 and ``--help`` below 0.3 s on an idle machine, i.e. about the cost of importing numpy, because
 they import no plugin (the sub-command table is read without importing plugins, see
-``mirrorlab.core.cli.commands``). ``plugins`` imports every plugin and is shown for contrast.
+``mirrorlab.core.cli.commands``). Commands that work on a session import only the plugins they
+use (the registry reads what each plugin declares, ``mirrorlab.core.registry``): ``session info``
+none, ``analyze derivatives`` and ``kinematics --help`` the kinematics plugin, ``run --check`` of
+the demo's recording recipe the plugins it names. ``plugins`` imports every plugin and is shown
+for contrast.
 
 The ``mirrorlab`` script next to this interpreter is used (``.venv/bin/mirrorlab``). Exit code 0.
 """
@@ -19,6 +23,7 @@ import argparse
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -37,11 +42,19 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=15, help="runs per command (median reported)")
     args = ap.parse_args()
     mirrorlab = _script()
+    work = Path(tempfile.mkdtemp())
+    session = work / "small.h5"
+    subprocess.run([mirrorlab, "session", "new", str(session)], stdout=subprocess.DEVNULL, check=True)
+    recipe = Path(__file__).resolve().parents[1] / "sessions" / "rssr_acquire.toml"
     commands = {
         "python -c pass": [sys.executable, "-c", "pass"],
         "python -c 'import numpy'": [sys.executable, "-c", "import numpy"],
         "mirrorlab --version": [mirrorlab, "--version"],
         "mirrorlab --help": [mirrorlab, "--help"],
+        "mirrorlab session info FILE": [mirrorlab, "session", "info", str(session)],
+        "mirrorlab kinematics --help": [mirrorlab, "kinematics", "--help"],
+        "mirrorlab analyze derivatives -h": [mirrorlab, "analyze", "derivatives", "--help"],
+        "mirrorlab run ... --check": [mirrorlab, "run", str(recipe), "--check"],
         "mirrorlab plugins": [mirrorlab, "plugins"],
     }
     times: dict[str, list[float]] = {name: [] for name in commands}
@@ -52,9 +65,9 @@ def main() -> int:
             times[name].append(time.perf_counter() - t0)
     median = {name: statistics.median(t) for name, t in times.items()}
     bare, numpy_ = median["python -c pass"], median["python -c 'import numpy'"]
-    print(f"{'command':28s} {'median s':>9s} {'min s':>7s} {'x python':>9s} {'x numpy':>8s}")
+    print(f"{'command':34s} {'median s':>9s} {'min s':>7s} {'x python':>9s} {'x numpy':>8s}")
     for name, t in median.items():
-        print(f"{name:28s} {t:9.3f} {min(times[name]):7.3f} {t / bare:9.2f} {t / numpy_:8.2f}")
+        print(f"{name:34s} {t:9.3f} {min(times[name]):7.3f} {t / bare:9.2f} {t / numpy_:8.2f}")
     worst = max(median["mirrorlab --version"], median["mirrorlab --help"])
     print(f"--version/--help: {worst:.3f} s (goal < {GOAL_S} s on an idle machine; "
           f"{worst / numpy_:.2f} x the numpy import baseline)")
