@@ -55,7 +55,7 @@ if TYPE_CHECKING:
     from .params import Parameter, ParameterSet
     from .registry import Registry, get_registry
     from .session import ResultData, Session
-    from .steps import ALGORITHM_TABLES, Step, algorithm_tables
+    from .steps import ALGORITHM_TABLES, AlgorithmStep, Step, algorithm_tables
     from .store import schema
     from .streams import Block, StreamSpec
 
@@ -65,13 +65,14 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
-         "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
+         "algorithm_tables": "steps", "AlgorithmStep": "steps", "SessionClock": "clock", "EventBus": "events",
          "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
          "parameter_type": "cli.options", "plain": "cli.options", "add_overwrite_option": "cli.outputs",
          "progress_bar": "cli.progress", "schema": "store.schema"}
 
 __all__ = [
-    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "Cancelled", "ConfigurationError",
+    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "AlgorithmStep", "Block", "Cancelled",
+    "ConfigurationError",
     "Controller", "ControllerContext", "DamagedFileError", "DataError", "DeviceDisconnected", "DeviceError",
     "DeviceReplyError", "DeviceTimeout", "DuplicateNameError", "EventBus", "MirrorlabError", "MirrorlabWarning",
     "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",

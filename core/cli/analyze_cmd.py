@@ -10,7 +10,7 @@ from typing import Any
 import h5py
 
 from ..algorithms import Algorithm
-from ..errors import AlgorithmError, Problem, ValidationError
+from ..errors import Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
@@ -126,9 +126,7 @@ def analyze(args: argparse.Namespace) -> int:
     inputs, params = _checked(algorithm, args)
     with Session.open(args.session, writable=True) as s, progress_bar(not args.no_progress) as on_event:
         s.events.subscribe(on_event)
-        ref = s.run(algorithm, inputs, params, label=args.label)
-        if ref.status != "ok":  # stored with its error; said once, by main()
-            raise AlgorithmError(f"{ref.path} failed: {ref.error}")
+        ref = s.run(algorithm, inputs, params, label=args.label).require_ok()  # stored with its error; said once, by main()
         written = {name: (d.shape, d.dtype, d.attrs.get("unit", "")) for name, d in s.file[ref.path].items()
                    if isinstance(d, h5py.Dataset)}
     print(f"{args.session}: {ref.path}" + (f" (@{ref.label})" if ref.label else "") + ": ok")
