@@ -51,6 +51,7 @@ if TYPE_CHECKING:
     from .controller_runtime import ControllerContext
     from .controllers import Controller
     from .events import EventBus
+    from .figures import figures_folder, save_figure
     from .hookspecs import hookimpl
     from .params import Parameter, ParameterSet
     from .registry import Registry, get_registry
@@ -66,6 +67,7 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
          "algorithm_tables": "steps", "AlgorithmStep": "steps", "SessionClock": "clock", "EventBus": "events",
+         "figures_folder": "figures", "save_figure": "figures",
          "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
          "parameter_type": "cli.options", "plain": "cli.options", "add_overwrite_option": "cli.outputs",
          "progress_bar": "cli.progress", "schema": "store.schema"}
@@ -79,7 +81,7 @@ __all__ = [
     "ResultRef", "RunContext", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
     "StoppedOnRequest", "StreamSpec", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
-    "progress_bar", "schema",
+    "figures_folder", "progress_bar", "save_figure", "schema",
 ]
 
 

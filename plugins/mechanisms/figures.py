@@ -12,22 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
 __all__ = ["four_bar_figure", "plot_centrodes", "plot_four_bar", "plot_swept", "plot_walls", "walls_figure"]
 
 LINK_COLOURS = {0: ("ground", "0.4"), 1: ("input", "tab:blue"), 2: ("coupler", "tab:orange"), 3: ("output", "tab:green"),
                 -1: ("unassigned", "tab:red")}
-
-
-def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(p, dpi=100)
-    return p
 
 
 def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLike, joints: ArrayLike,
@@ -41,7 +33,7 @@ def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLi
     >>> plot_four_bar(os.path.join(tempfile.mkdtemp(), "f.png"), j, [0, 1, 2, 3], j).stat().st_size > 0
     True
     """
-    return _save(four_bar_figure(tracks, link, joints, title, every, unit), path)
+    return save_figure(four_bar_figure(tracks, link, joints, title, every, unit), path)
 
 
 def four_bar_figure(tracks: ArrayLike, link: ArrayLike, joints: ArrayLike, title: str = "reconstructed four-bar",
@@ -98,7 +90,7 @@ def plot_swept(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, region:
     ax.set_ylabel(f"y ({unit})")
     ax.set_title(title)
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fixed: ArrayLike, moving: ArrayLike,
@@ -123,13 +115,13 @@ def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fix
         axis.set_ylabel(f"y ({unit})")
         axis.legend(fontsize=8, loc="best")
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_walls(path: os.PathLike[str] | str, walls: Mapping[str, tuple[ArrayLike, ArrayLike]],
                title: str = "guiding walls", unit: str = "l units", polylines: Collection[str] = ()) -> Path:
     """Write :func:`walls_figure` to the PNG file ``path``."""
-    return _save(walls_figure(walls, title, unit, polylines), path)
+    return save_figure(walls_figure(walls, title, unit, polylines), path)
 
 
 def walls_figure(walls: Mapping[str, tuple[ArrayLike, ArrayLike]], title: str = "guiding walls",

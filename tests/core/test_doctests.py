@@ -7,9 +7,9 @@ import importlib
 
 import pytest
 
-MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.algorithms", "mirrorlab.core.cli.options",
+MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
            "mirrorlab.core.batch.chunks", "mirrorlab.core.digests", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
-           "mirrorlab.core.tui.ticks",
+           "mirrorlab.core.tui.ticks", "mirrorlab.core.algorithms", "mirrorlab.core.figures",
            "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming", "mirrorlab.core.devices.wire"]
 
 
