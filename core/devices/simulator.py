@@ -220,8 +220,7 @@ class LineSimulator:
         yield "OK"
 
     def cmd_SIM_FAULT_Q(self, args: list[str]) -> Lines:
-        for name, values in sorted(self.faults.items()):
-            yield f"FAULT {name} {' '.join(values) or '-'}"
+        yield from self.fault_lines()
         yield "OK"
 
     def cmd_SIM_TRUTH_Q(self, args: list[str]) -> Lines:
@@ -240,6 +239,10 @@ class LineSimulator:
     def fault_value(self, name: str, index: int = 0, default: float = 0.0) -> float:
         values = self.faults.get(name)
         return float(values[index]) if values and len(values) > index else default
+
+    def fault_lines(self) -> list[str]:
+        """``FAULT <name> <values>`` (``-`` for none) of every fault set, by name: ``SIM:FAULT?`` and the truth list them."""
+        return [f"FAULT {name} {' '.join(values) or '-'}" for name, values in sorted(self.faults.items())]
 
 
 class SimulatedWorld:

@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-from mirrorlab.core.devices import CommandError, LineSimulator
+from mirrorlab.core.devices import LineSimulator
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
 from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
@@ -24,7 +24,6 @@ from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, S
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
-    Sphere,
     TrackingWorld,
     axis_angles,
     turntable_world,
@@ -54,6 +53,7 @@ class LineTrackerModel(ScannedLines, LineSimulator):
     model = "OLDT-512"
     firmware = "1.0"
     serial_number = "SIM0004"
+    load_usage = "SIM:LOAD TURNTABLE <radius> <period_s> <range> | STILL <deg> <range> | LINE <x y z vx vy vz>"
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -61,7 +61,6 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or turntable_world())
         self.mount = np.asarray(mount, dtype=float)
         self.forward = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
-        self.np_rng = np.random.default_rng(seed)
         self.detector = OpticalDetector("M")
         self.pending: list[str] = []
         super().__init__(seed)
@@ -116,30 +115,17 @@ class LineTrackerModel(ScannedLines, LineSimulator):
             self.next_sample_ms += max(1e-3, self.detector.period_s + jitter) * 1000.0
 
     # -- scenarios and truth -------------------------------------------------------------------------
-    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | TrackingWorld | None:
         """``SIM:LOAD TURNTABLE <radius mm> <period s> <range mm>`` | ``STILL <deg> <range mm>``
         | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (world mm, mm/s): replace the target."""
-        usage = "SIM:LOAD TURNTABLE <radius> <period_s> <range> | STILL <deg> <range> | LINE <x y z vx vy vz>"
-        if not args:
-            raise CommandError("E02", f"usage: {usage}")
-        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
-        t0 = self.clock_ms / 1000.0
         if kind == "TURNTABLE" and len(values) == 3 and values[1] > 0:
-            self.world = turntable_world(values[0], values[1], values[2], start_s=t0)
-            yield "OK"
-            return
+            return turntable_world(values[0], values[1], values[2], start_s=t0)
         if kind == "STILL" and len(values) == 2:
             a = math.radians(values[0])
-            path = Path(tuple(self.mount + values[1] * np.array([math.sin(a), 0.0, math.cos(a)])))
-        elif kind == "LINE" and len(values) == 6:
-            path = Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
-        else:
-            raise CommandError("E02", f"usage: {usage}")
-        target = self.world.spheres[0]
-        self.world = TrackingWorld((Sphere(path, target.radius, target.brightness), *self.world.spheres[1:]),
-                                   self.world.mirror_centre, self.world.camera, self.world.lamp,
-                                   self.world.mirror_size)
-        yield "OK"
+            return Path(tuple(self.mount + values[1] * np.array([math.sin(a), 0.0, math.cos(a)])))
+        if kind == "LINE" and len(values) == 6:
+            return Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
+        return None
 
     def truth_lines(self) -> list[str]:
         """``TIME <ms>``, ``TARGET <deg> <px>`` (true centre direction along the sensor and its pixel
@@ -151,5 +137,4 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         size = (math.tan(float(along) + half) - math.tan(float(along) - half)) * FOCAL_MM / PITCH_MM
         return [f"TIME {int(self.clock_ms)}",
                 f"TARGET {math.degrees(float(along)):.4f} {float(angle_to_pixel(along)):.3f}",
-                f"SIZE {size:.2f}",
-                *[f"FAULT {n} {' '.join(v) or '-'}" for n, v in sorted(self.faults.items())]]
+                f"SIZE {size:.2f}", *self.fault_lines()]

@@ -27,10 +27,10 @@ from mirrorlab.instruments.virtual_lab.line_sensor.view import (
     detector_projection,
     optical_faults,
 )
+from mirrorlab.instruments.virtual_lab.simulators import fault_usage
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
-    Sphere,
     TrackingWorld,
     image_in_mirror,
     mirror_normal,
@@ -100,12 +100,13 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
     model = "MGIM-1M"
     firmware = "1.0"
     serial_number = "SIM0003"
+    load_usage = ("SIM:LOAD STILL <h> <v> <range> | CIRCLE <h0> <rate> <range> <start_s> | "
+                  "LINE <x> <y> <z> <vx> <vy> <vz>")
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  params: AxisParams | None = None) -> None:
         self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld())
         self.base_params = params or AxisParams()
-        self.np_rng = np.random.default_rng(seed)
         self.axes = {a: Axis(a, self.base_params, detector=OpticalDetector(f"{a}:M")) for a in AXES}
         self.pending: list[str] = []
         self._stream_on = False
@@ -156,7 +157,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
             name = args[0].upper()
             names, per_axis = FAULTS[name]
             if len(args) - 1 != len(names):
-                raise CommandError("E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}")
+                raise CommandError(*fault_usage(name, names))
             values = args[1:]
             if per_axis:
                 values = [self._axis_name(values[0]), *values[1:]]
@@ -173,8 +174,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         self._apply_mechanical_faults()
 
     def _axis_fault(self, name: str, axis: str, default: float) -> float:
-        values = self.faults.get(f"{name} {axis}")
-        return float(values[0]) if values else default
+        return self.fault_value(f"{name} {axis}", 0, default)
 
     def _apply_mechanical_faults(self) -> None:
         for a, axis in self.axes.items():
@@ -357,32 +357,26 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         yield f"OK {axis.deadband:g}"
 
     # -- scenarios and truth -------------------------------------------------------------------------
-    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | None:
         """``SIM:LOAD STILL <h deg> <v deg> <range mm>`` | ``CIRCLE <h0 deg> <rate deg/s> <range mm> <start s>``
-        | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (mm, mm/s): replace the target; the detectors are turned onto it."""
-        usage = ("SIM:LOAD STILL <h> <v> <range> | CIRCLE <h0> <rate> <range> <start_s> | "
-                 "LINE <x> <y> <z> <vx> <vy> <vz>")
-        if not args:
-            raise CommandError("E02", f"usage: {usage}")
-        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
-        t0 = self.clock_ms / 1000.0
+        | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (mm, mm/s): replace the target."""
         c = self.world.camera_direction
         if kind == "STILL" and len(values) == 3:
             h, v, r = math.radians(values[0]), math.radians(values[1]), values[2]
-            path = Path(tuple(r * mirror_normal(h, v, c)))
-        elif kind == "CIRCLE" and len(values) == 4:
+            return Path(tuple(r * mirror_normal(h, v, c)))
+        if kind == "CIRCLE" and len(values) == 4:
             h0, rate, r, start = math.radians(values[0]), math.radians(values[1]), values[2], values[3]
             az0 = math.atan2(c[0], c[2]) + h0
-            path = Path(radius=r, rate=rate, phase=az0, start_s=t0 + start)
-        elif kind == "LINE" and len(values) == 6:
-            path = Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
-        else:
-            raise CommandError("E02", f"usage: {usage}")
-        target = self.world.spheres[0]
-        self.world = replace(self.world, spheres=(Sphere(path, target.radius, target.brightness),
-                                                  *self.world.spheres[1:]))
+            return Path(radius=r, rate=rate, phase=az0, start_s=t0 + start)
+        if kind == "LINE" and len(values) == 6:
+            return Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
+        return None
+
+    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+        """``SIM:LOAD`` (:meth:`scenario`), then the detectors are turned onto the new target."""
+        replies = list(super().cmd_SIM_LOAD(args))
         self.pose_on_target()
-        yield "OK"
+        yield from replies
 
     def truth_lines(self) -> list[str]:
         """``TIME``, ``TARGET``, ``AXIS`` per axis, ``NORMAL``, ``INMIRROR`` and ``FAULT`` lines.
@@ -405,5 +399,4 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         out.append("NORMAL " + " ".join(f"{x:.6f}" for x in normal))
         inside = image_in_mirror(w.camera, target, w.mirror_centre, normal, w.mirror_size, w.spheres[0].radius)
         out.append(f"INMIRROR {int(inside)}")
-        out += [f"FAULT {name} {' '.join(v) or '-'}" for name, v in sorted(self.faults.items())]
-        return out
+        return out + self.fault_lines()

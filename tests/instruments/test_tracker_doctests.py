@@ -10,6 +10,8 @@ import pytest
 MODULES = [
     "mirrorlab.instruments.virtual_lab.line_sensor.sensor",
     "mirrorlab.instruments.virtual_lab.line_sensor.view",
+    "mirrorlab.instruments.virtual_lab.line_sensor.detector",
+    "mirrorlab.instruments.virtual_lab.simulators",
     "mirrorlab.instruments.line_tracker.driver",
     "mirrorlab.instruments.line_tracker.experiments",
     "mirrorlab.instruments.virtual_lab.world",

@@ -2,28 +2,27 @@
 gimbal with a detector on each axis.
 
 A scan's sample line leaves as soon as the scan takes it (:meth:`next_due_ms` wakes the server
-then), the detector noise has its own generator (re-seeded by ``SIM:SEED``), and the optical
-faults (:data:`~.view.OPTICAL_FAULTS`) have their arguments
-checked before the simulator records them.
+then), the detector noise has its own generator (:class:`~..simulators.SeededNoise`), and the
+optical faults (:data:`~.view.OPTICAL_FAULTS`) have their arguments checked before the simulator
+records them.
 """
 
 from __future__ import annotations
 
-import numpy as np
 from mirrorlab.core.devices import CommandError
 
+from ..simulators import SeededNoise
 from ..world import InWorld
 from .detector import Lines
 from .view import OPTICAL_FAULTS, check_optical_fault
 
 
-class ScannedLines(InWorld):
+class ScannedLines(SeededNoise, InWorld):
     """Mixin of a :class:`~mirrorlab.core.devices.LineSimulator` model whose scans append stream
     lines to ``pending`` and schedule the next scan at ``next_sample_ms`` (device ms)."""
 
     pending: list[str]
     next_sample_ms: float
-    np_rng: np.random.Generator
 
     def stream_lines(self) -> list[str]:
         lines, self.pending = self.pending, []
@@ -32,10 +31,6 @@ class ScannedLines(InWorld):
     def next_due_ms(self) -> float | None:
         """The next detector scan (device ms): its sample line leaves as soon as it is taken."""
         return self.next_sample_ms
-
-    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
-        yield from super().cmd_SIM_SEED(args)  # type: ignore[misc]
-        self.np_rng = np.random.default_rng(self.seed)  # type: ignore[attr-defined]
 
     def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
         if args and args[0].upper() in OPTICAL_FAULTS:
