@@ -356,10 +356,7 @@ class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
         yield f"OK {math.degrees(self.psi):.2f} {math.degrees(delta):.2f}"
 
     def cmd_BEAM(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "BEAM 0|A|B|C|D")
-        if args[0].upper() not in ("0", "A", "B", "C", "D"):
-            raise CommandError("E02", "usage: BEAM 0|A|B|C|D")
-        self.beam = args[0].upper()
+        self.beam = self.keyword(args, "BEAM 0|A|B|C|D")
         yield "OK"
 
     def _now(self) -> float:
@@ -411,10 +408,7 @@ class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
         yield "OK"
 
     def cmd_TRACK(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "TRACK ON|OFF")
-        if args[0].upper() not in ("ON", "OFF"):
-            raise CommandError("E02", "usage: TRACK ON|OFF")
-        on = args[0].upper() == "ON"
+        on = self.keyword(args, "TRACK ON|OFF") == "ON"
         if on and not self.tracking:
             self.next_cycle_s = self._now()
             self.missed = 0

@@ -95,3 +95,20 @@ def test_both_line_sensor_hosts_take_a_clock_and_threshold() -> None:
     film, detector = FilmScannerModel(), LineTrackerModel()
     assert film.execute("CLK 100000") == ["OK 100000"] and detector.execute("CLK 100000") == ["OK 100000 5.1"]
     assert film.execute("THR 90") == ["OK 90"] == detector.execute("THR 90")
+
+
+@pytest.mark.parametrize(("name", "command", "usage"), [
+    ("film_scanner", "STREAM maybe", "STREAM ON|OFF"), ("film_scanner", "SIM:CLOCK SLOW", "SIM:CLOCK REAL|FAST"),
+    ("line_tracker", "STREAM ON OFF", "STREAM ON|OFF"), ("line_tracker", "SELECT BIGGEST", "SELECT WIDEST|NEAREST|FIRST"),
+    ("mirror_gimbal", "H:STREAM", "STREAM ON|OFF"), ("ultrasonic_tracker", "BEAM E", "BEAM 0|A|B|C|D"),
+    ("ultrasonic_tracker", "TRACK", "TRACK ON|OFF"),
+])
+def test_a_keyword_command_names_its_choices(name: str, command: str, usage: str) -> None:
+    assert MODELS[name]().execute(command) == [f"ERR E02 usage: {usage}"]
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_keyword_commands_take_their_words_in_any_case(name: str) -> None:
+    model = MODELS[name]()
+    assert model.execute("SIM:CLOCK fast") == ["OK"] and model.fast
+    assert model.execute("STREAM on") == ["OK"] and model.streaming

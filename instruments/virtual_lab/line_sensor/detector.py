@@ -200,15 +200,9 @@ class OpticalDetector:
         yield "OK"
 
     def cmd_SELECT(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "SELECT WIDEST|NEAREST|FIRST")
-        if args[0].upper() not in RULES:
-            raise CommandError("E02", "usage: SELECT WIDEST|NEAREST|FIRST")
-        self.rule = args[0].upper()
+        self.rule = LineSimulator.keyword(args, f"SELECT {'|'.join(RULES)}")
         yield "OK"
 
     def cmd_STREAM(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "STREAM ON|OFF")
-        if args[0].upper() not in ("ON", "OFF"):
-            raise CommandError("E02", "usage: STREAM ON|OFF")
-        self.streaming = args[0].upper() == "ON"
+        self.streaming = LineSimulator.keyword(args, "STREAM ON|OFF") == "ON"
         yield "OK"
