@@ -36,8 +36,9 @@ ALGORITHM_TABLES = {
 class Step(ABC):
     """Base class of recipe step kinds.
 
-    ``parameters`` declares the keys of the step's table (besides ``action``). Override
-    :meth:`validate` for keys that need more than typed scalars (nested tables).
+    ``parameters`` declares the keys of the step's table (besides ``action``). Override :meth:`check`
+    for what the typed values must satisfy together (a file that must exist, keys that go together),
+    and :meth:`validate` for keys that need more than typed scalars (nested tables).
     """
 
     name: ClassVar[str]
@@ -55,9 +56,17 @@ class Step(ABC):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        """Typed values of the step's table and every problem found (file, key path, reason)."""
+        """Typed values of the step's table and every problem found (file, key path, reason): those of
+        :meth:`scalars`, else those of :meth:`check`; and the labels that name no instrument of the recipe."""
         values, problems = cls.scalars(table, where, file)
+        if not problems:
+            problems = cls.check(values, where, file, registry)
         return values, problems + instrument_problems(values, cls.instrument_keys, where, file, instruments)
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        """Problems of the step's typed ``values`` taken together, once each is valid (default: none)."""
+        return []
 
     @classmethod
     def scalars(cls, table: Mapping[str, Any], where: str, file: str | None) -> tuple[dict[str, Any], list[Problem]]:
@@ -127,9 +136,9 @@ class AlgorithmStep(Step):
 
     :meth:`validate` checks the step's own keys (:attr:`parameters`), finds the algorithm that
     :meth:`algorithm_name` names (an unknown one is reported at :attr:`algorithm_key`), adds the
-    problems of :meth:`check` and then those of the two tables (:func:`algorithm_tables`; the
-    inputs of :meth:`provided` may be left out). The typed values hold the tables as ``inputs``
-    and ``parameters``. :meth:`run_algorithm` runs it in :meth:`execute`.
+    problems of :meth:`check` (called once the algorithm is known) and then those of the two tables
+    (:func:`algorithm_tables`; the inputs of :meth:`provided` may be left out). The typed values hold
+    the tables as ``inputs`` and ``parameters``. :meth:`run_algorithm` runs it in :meth:`execute`.
     """
 
     tables = ALGORITHM_TABLES
@@ -149,11 +158,6 @@ class AlgorithmStep(Step):
         return ()
 
     @classmethod
-    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
-        """Problems of the step's own values once its algorithm is known (default: none)."""
-        return []
-
-    @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
         values, problems = cls.scalars(table, where, file)
@@ -166,7 +170,7 @@ class AlgorithmStep(Step):
         problems = cls.check(values, where, file, registry)
         inputs, params, more = algorithm_tables(algorithm, table, where, file, cls.provided(values))
         values.update(inputs=inputs, parameters=params)
-        return values, problems + more
+        return values, problems + more + instrument_problems(values, cls.instrument_keys, where, file, instruments)
 
     def run_algorithm(self, session: Session, name: str, inputs: Mapping[str, Any], parameters: Mapping[str, Any],
                       label: str | None = None) -> ResultRef:

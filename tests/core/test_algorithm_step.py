@@ -10,7 +10,17 @@ from typing import Any
 
 import numpy as np
 import pytest
-from mirrorlab.core import AlgorithmError, AlgorithmStep, Parameter, ParameterSet, Problem, Registry, Session, get_registry
+from mirrorlab.core import (
+    AlgorithmError,
+    AlgorithmStep,
+    Parameter,
+    ParameterSet,
+    Problem,
+    Registry,
+    Session,
+    Step,
+    get_registry,
+)
 from mirrorlab.plugins.photogrammetry.errors import PhotogrammetryError
 
 
@@ -94,3 +104,30 @@ def test_a_failed_run_is_stored_and_stops_the_recipe_with_the_steps_error(tmp_pa
             cls().execute(s, values)
         (ref,) = s.results()
         assert ref.status == "failed" and str(info.value).startswith(f"{ref.path} failed: ")
+
+
+class Pause(Step):
+    """A plain step whose two keys go together: ``until`` after ``since``."""
+
+    name = "pause"
+    description = "test step"
+    parameters = ParameterSet(Parameter("since", float, 0.0), Parameter("until", float, 1.0),
+                              Parameter("instrument", str, ""))
+    instrument_keys = ("instrument",)
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        return [] if values["until"] > values["since"] else [Problem(f"{where}.until", "must follow since", file)]
+
+    def execute(self, session: Session, values: Mapping[str, Any]) -> None:
+        raise AssertionError("not run")
+
+
+@pytest.mark.parametrize(("table", "expected"), [
+    ({"since": 2.0, "until": 1.0, "instrument": "cam"}, ["steps.0.until", "steps.0.instrument"]),
+    ({"since": "x", "until": 1.0}, ["steps.0.since"]),                   # check waits for valid values
+    ({"since": 0.0, "until": 1.0, "instrument": "dut"}, []),
+])
+def test_a_plain_steps_check_sees_its_typed_values(table: dict[str, Any], expected: list[str]) -> None:
+    _, problems = Pause.validate(table, "steps.0", None, get_registry(), {"dut": {}})
+    assert [p.key for p in problems] == expected, problems
