@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -41,23 +41,30 @@ def _built(names: list[str], argv: Sequence[str] | None, command: str) -> set[st
     return {wanted} if wanted in names else set(names)
 
 
+def _named_parsers(sub: argparse._SubParsersAction, kind: str, argv: Sequence[str] | None,
+                   command: str) -> Iterator[tuple[str, Any, argparse.ArgumentParser]]:
+    """A sub-command of ``command`` per registered name of ``kind``: a bare name, unless parsing ``argv``
+    needs its options (:func:`_built`); those are yielded as ``(name, class, parser)`` for their options."""
+    reg = get_registry()
+    names = reg.names(kind)
+    built = _built(names, argv, command)
+    for name in names:
+        if name not in built:
+            sub.add_parser(name, add_help=False)
+            continue
+        try:
+            cls = reg.get(kind, name)
+        except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
+            continue
+        yield name, cls, sub.add_parser(name, help=cls.description, description=cls.description)
+
+
 def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> None:
     """Add ``analyze`` and ``record``; with ``argv`` naming an algorithm (instrument), only its options
     are built, so only the plugin providing it is imported (the others are names, never parsed)."""
-    reg = get_registry()
     a = sub.add_parser("analyze", help="run a registered algorithm on datasets of a session")
-    asub = a.add_subparsers(dest="algorithm", metavar="ALGORITHM", required=True)
-    names = reg.names("algorithm")
-    built = _built(names, argv, "analyze")
-    for name in names:
-        if name not in built:
-            asub.add_parser(name, add_help=False)
-            continue
-        try:
-            cls = reg.algorithm(name)
-        except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
-            continue
-        p = asub.add_parser(name, help=cls.description, description=cls.description)
+    for name, cls, p in _named_parsers(a.add_subparsers(dest="algorithm", metavar="ALGORITHM", required=True),
+                                       "algorithm", argv, "analyze"):
         p.add_argument("session", type=existing_path, help="session file (results are added to it)")
         ins = ", ".join(f"{i.name} ({i.description})" for i in cls.inputs)
         p.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
@@ -69,18 +76,8 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.set_defaults(func=analyze, algorithm_name=name)
 
     r = sub.add_parser("record", help="record one instrument (real or simulated) into a new session")
-    rsub = r.add_subparsers(dest="instrument", metavar="INSTRUMENT", required=True)
-    names = reg.names("instrument")
-    built = _built(names, argv, "record")
-    for name in names:
-        if name not in built:
-            rsub.add_parser(name, add_help=False)
-            continue
-        try:
-            cls = reg.instrument(name)
-        except Exception:
-            continue
-        p = rsub.add_parser(name, help=cls.description, description=cls.description)
+    for name, cls, p in _named_parsers(r.add_subparsers(dest="instrument", metavar="INSTRUMENT", required=True),
+                                       "instrument", argv, "record"):
         p.add_argument("--out", type=Path, required=True, help="session file to create")
         add_overwrite_option(p)
         p.add_argument("--seconds", type=duration, default=RECORD_SECONDS, metavar="S",
