@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import doctest
-import importlib
-
 import pytest
+
+from tests.support import assert_examples_pass
 
 MODULES = [
     "mirrorlab.instruments.virtual_lab.line_sensor.sensor",
@@ -32,5 +31,4 @@ MODULES = [
 
 @pytest.mark.parametrize("name", MODULES)
 def test_module_examples(name: str) -> None:
-    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert result.attempted > 0 and result.failed == 0
+    assert_examples_pass(name)
