@@ -19,8 +19,8 @@ import numpy as np
 from mirrorlab.core.devices import LineSimulator
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
-from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
-from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, SIGNAL_GAIN, detector_projection, optical_faults
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel
+from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, detector_projection, optical_faults
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
@@ -30,8 +30,6 @@ from mirrorlab.instruments.virtual_lab.world import (
 )
 
 Lines = Iterator[str]
-BLUR_PX = 1.5                    # deliberate defocus (§3.2), px
-NOISE_COUNTS = 1.0               # read noise, counts
 TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
 
 
@@ -97,9 +95,7 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         """Video signal (counts) of a scan at world time ``t`` (s)."""
         faults = optical_faults(self.faults)
         proj = detector_projection(self.world, t, "H", 0.0, faults, eye=self.mount, reference=self.forward)
-        gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)
-        return video_signal(proj, self.detector.clock_hz, gain, math.hypot(BLUR_PX, faults.defocus_px),
-                            NOISE_COUNTS, self.np_rng)
+        return self.scan_signal(proj, self.detector.clock_hz, faults)
 
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time), scanning every ``512 / clock`` s
@@ -111,8 +107,7 @@ class LineTrackerModel(ScannedLines, LineSimulator):
             line = self.detector.stream_line()
             if line:
                 self.pending.append(line)
-            jitter = self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
-            self.next_sample_ms += max(1e-3, self.detector.period_s + jitter) * 1000.0
+            self.next_sample_ms += self.scan_period(self.detector.period_s) * 1000.0
 
     # -- scenarios and truth -------------------------------------------------------------------------
     def scenario(self, kind: str, values: list[float], t0: float) -> Path | TrackingWorld | None:

@@ -20,10 +20,8 @@ import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
-from mirrorlab.instruments.virtual_lab.line_sensor.sensor import video_signal
 from mirrorlab.instruments.virtual_lab.line_sensor.view import (
     OPTICAL_FAULTS,
-    SIGNAL_GAIN,
     detector_projection,
     optical_faults,
 )
@@ -46,8 +44,6 @@ STALL_S = 2.0                    # E42 after the drive is saturated this long wi
 STALL_RATE = math.radians(0.1)   # "still": below 0.1 deg/s
 POS_GAIN = 280.0                 # POS mode: volts per rad of mirror error (type-1 loop, K dt ~ 0.6)
 SOFT_LIMIT = math.radians(30.0)  # default LIMIT, mirror angle
-BLUR_PX = 1.5                    # deliberate defocus of the detector lens (§3.2), px
-NOISE_COUNTS = 1.0               # sensor read noise, counts
 
 #: name -> (argument names, whether the first argument is an axis)
 FAULTS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -198,8 +194,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         super().advance(self.scene.catch_up(seconds, self.clock_ms))
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
-            period = self.period_s + self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
-            period = max(period, 1e-3)
+            period = self.scan_period(self.period_s)
             self.scene.note_mirror(t, self.axes["H"].state.mirror, self.axes["V"].state.mirror)
             for axis in self.axes.values():
                 self._sample_axis(axis, t)
@@ -211,9 +206,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         faults = optical_faults(self.faults)
         proj = detector_projection(self.world, t, axis.name, axis.state.detector_angle(axis.params), faults,
                                    self.fault_value("PARALLAX"))
-        gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)
-        blur = math.hypot(BLUR_PX, faults.defocus_px)
-        return video_signal(proj, axis.detector.clock_hz, gain, blur, NOISE_COUNTS, self.np_rng)
+        return self.scan_signal(proj, axis.detector.clock_hz, faults)
 
     def _sample_axis(self, axis: Axis, t: float) -> None:
         ms = int(round(t * 1000.0))
