@@ -56,13 +56,11 @@ class LineTrackerModel(ScannedLines, LineSimulator):
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or turntable_world())
         self.mount = np.asarray(mount, dtype=float)
         self.forward = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
         self.detector = OpticalDetector("M")
         self.pending: list[str] = []
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, turntable_world, seed)
         self.next_sample_ms = self.clock_ms
 
     def reset(self) -> None:
@@ -100,7 +98,7 @@ class LineTrackerModel(ScannedLines, LineSimulator):
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time), scanning every ``512 / clock`` s
         (plus ``TIMINGJITTER``)."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
             self.detector.sample(self.signal(t), int(round(t * 1000.0)))

@@ -101,13 +101,11 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  params: AxisParams | None = None) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld())
         self.base_params = params or AxisParams()
         self.axes = {a: Axis(a, self.base_params, detector=OpticalDetector(f"{a}:M")) for a in AXES}
         self.pending: list[str] = []
         self._stream_on = False
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, TrackingWorld, seed)
         self.next_sample_ms = self.clock_ms
         self.pose_on_target()
 
@@ -191,7 +189,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time); run every detector scan and control
         step that falls due."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
             period = self.scan_period(self.period_s)

@@ -71,7 +71,7 @@ FAULTS: dict[str, tuple[str, ...]] = {
 }
 
 
-class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
+class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
     """Simulated USDF tracker.
 
     Parameters
@@ -97,8 +97,6 @@ class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  servo: Servo | None = DEFAULT_SERVO, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld(
-            (Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),)))
         self.servo = servo
         self.mount = np.asarray(mount, dtype=float)
         x = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
@@ -106,8 +104,7 @@ class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
         self.frame = np.stack([x, y, np.cross(x, y)])     # rows: tracker axes in world coordinates
         self.theta = np.zeros(2)
         self.rate = np.zeros(2)
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, lambda: TrackingWorld((Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),)), seed)
         self.physics_s = self.clock_ms / 1000.0
 
     # -- state -------------------------------------------------------------------------------------
@@ -204,7 +201,7 @@ class UltrasonicTrackerModel(SeededNoise, InWorld, LineSimulator):
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time): the platform moves, and in TRACK mode
         search cycles run as they fall due."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         now = self.clock_ms / 1000.0
         while self.tracking and self.next_cycle_s <= now:
             self.send_due_lines()   # the previous cycle's line leaves before this one is computed

@@ -273,7 +273,8 @@ class SharedWorld:
 
 
 class InWorld:
-    """Mixin of a simulator model that sees a :class:`SharedWorld` as ``self.scene``.
+    """Mixin (before :class:`~mirrorlab.core.devices.LineSimulator`) of a simulator model that sees a
+    :class:`SharedWorld` as ``self.scene`` and runs on its clock (:meth:`advance`).
 
     :attr:`world` is the scene now; setting it changes it for every simulator of the world.
     ``SIM:LOAD <scenario> <numbers...>`` sets it: the model's :meth:`scenario` says what a
@@ -286,6 +287,17 @@ class InWorld:
     clock_ms: float
     #: The scenarios of ``SIM:LOAD``, as its usage error names them.
     load_usage: ClassVar[str] = "SIM:LOAD <scenario> <numbers...>"
+
+    def __init__(self, world: TrackingWorld | SharedWorld | None, default: Callable[[], TrackingWorld],
+                 seed: int = 0) -> None:
+        """See ``world`` if it is shared, else a private world of ``world`` or ``default()``; start at its time."""
+        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or default())
+        super().__init__(seed)  # type: ignore[call-arg]  # the LineSimulator after this mixin
+        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+
+    def advance(self, seconds: float) -> None:
+        """Advance the clock by ``seconds``; on a shared world up to the world's time instead (:meth:`SharedWorld.catch_up`)."""
+        super().advance(self.scene.catch_up(seconds, self.clock_ms))  # type: ignore[misc]
 
     @property
     def world(self) -> TrackingWorld:

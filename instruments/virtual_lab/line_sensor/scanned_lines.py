@@ -26,7 +26,7 @@ BLUR_PX = 1.5                    # deliberate defocus of the detector lens (§3.
 NOISE_COUNTS = 1.0               # sensor read noise, counts
 
 
-class ScannedLines(SeededNoise, InWorld):
+class ScannedLines(InWorld, SeededNoise):
     """Mixin of a :class:`~mirrorlab.core.devices.LineSimulator` model whose scans append stream
     lines to ``pending`` and schedule the next scan at ``next_sample_ms`` (device ms)."""
 
