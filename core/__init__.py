@@ -54,11 +54,12 @@ if TYPE_CHECKING:
     from .controller_runtime import ControllerContext
     from .controllers import Controller
     from .events import EventBus
+    from .figures import figures_folder, save_figure
     from .hookspecs import hookimpl
     from .params import Parameter, ParameterSet
     from .registry import Registry, get_registry
     from .session import ResultData, Session
-    from .steps import ALGORITHM_TABLES, Step, algorithm_tables
+    from .steps import ALGORITHM_TABLES, AlgorithmStep, Step, algorithm_tables
     from .store import schema
     from .streams import Block, StreamSpec
     from .tui.screens import ScreenEntry
@@ -69,21 +70,23 @@ _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorith
          "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
-         "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
+         "algorithm_tables": "steps", "AlgorithmStep": "steps", "SessionClock": "clock", "EventBus": "events",
+         "figures_folder": "figures", "save_figure": "figures",
          "add_parameter_options": "cli.options", "collected": "cli.options", "existing_path": "cli.options",
          "parameter_type": "cli.options", "plain": "cli.options", "add_overwrite_option": "cli.outputs",
          "progress_bar": "cli.progress", "schema": "store.schema", "Subcommands": "cli.commands",
          "ScreenEntry": "tui.screens"}
 
 __all__ = [
-    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "Block", "Cancelled", "ConfigurationError",
+    "ALGORITHM_TABLES", "Algorithm", "AlgorithmError", "AlgorithmInputError", "AlgorithmStep", "Block", "Cancelled",
+    "ConfigurationError",
     "Controller", "ControllerContext", "DamagedFileError", "DataError", "DeviceDisconnected", "DeviceError",
     "DeviceReplyError", "DeviceTimeout", "DuplicateNameError", "EventBus", "MirrorlabError", "MirrorlabWarning",
     "Parameter", "ParameterSet", "PluginError", "Port", "Problem", "ProtocolError", "Registry", "ResultData",
     "ResultRef", "RunContext", "ScreenEntry", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
     "StoppedOnRequest", "StreamSpec", "Subcommands", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
-    "progress_bar", "schema",
+    "figures_folder", "progress_bar", "save_figure", "schema",
 ]
 
 

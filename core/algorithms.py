@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
-from .errors import AlgorithmInputError, Cancelled, Problem
+from .errors import AlgorithmError, AlgorithmInputError, Cancelled, Problem
 from .params import ParameterSet
 
 if TYPE_CHECKING:
@@ -259,6 +259,20 @@ class ResultRef:
     @property
     def path(self) -> str:
         return f"/results/{self.algorithm}/{self.run_id}"
+
+    def require_ok(self, error: type[Exception] = AlgorithmError) -> ResultRef:
+        """This reference if the run succeeded, else raise ``error`` naming the run and repeating its error.
+
+        Examples
+        --------
+        >>> ResultRef("derivatives", "run-0002", "failed", "time is not increasing").require_ok()
+        Traceback (most recent call last):
+        ...
+        mirrorlab.core.errors.AlgorithmError: /results/derivatives/run-0002 failed: time is not increasing
+        """
+        if self.status != "ok":
+            raise error(f"{self.path} failed: {self.error}")
+        return self
 
 
 #: Each input's digest entry for a run's provenance (:func:`~mirrorlab.core.digests.input_entry`), by input name.

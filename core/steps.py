@@ -20,7 +20,7 @@ from .hookspecs import hookimpl
 from .params import Parameter, ParameterSet
 
 if TYPE_CHECKING:
-    from .algorithms import Algorithm
+    from .algorithms import Algorithm, ResultRef
     from .registry import Registry
     from .session import Session
 
@@ -36,8 +36,9 @@ ALGORITHM_TABLES = {
 class Step(ABC):
     """Base class of recipe step kinds.
 
-    ``parameters`` declares the keys of the step's table (besides ``action``). Override
-    :meth:`validate` for keys that need more than typed scalars (nested tables).
+    ``parameters`` declares the keys of the step's table (besides ``action``). Override :meth:`check`
+    for what the typed values must satisfy together (a file that must exist, keys that go together),
+    and :meth:`validate` for keys that need more than typed scalars (nested tables).
     """
 
     name: ClassVar[str]
@@ -55,9 +56,17 @@ class Step(ABC):
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
                  registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        """Typed values of the step's table and every problem found (file, key path, reason)."""
+        """Typed values of the step's table and every problem found (file, key path, reason): those of
+        :meth:`scalars`, else those of :meth:`check`; and the labels that name no instrument of the recipe."""
         values, problems = cls.scalars(table, where, file)
+        if not problems:
+            problems = cls.check(values, where, file, registry)
         return values, problems + instrument_problems(values, cls.instrument_keys, where, file, instruments)
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        """Problems of the step's typed ``values`` taken together, once each is valid (default: none)."""
+        return []
 
     @classmethod
     def scalars(cls, table: Mapping[str, Any], where: str, file: str | None) -> tuple[dict[str, Any], list[Problem]]:
@@ -122,15 +131,31 @@ class Wait(Step):
             time.sleep(min(0.1, left))
 
 
-class Run(Step):
-    name = "run"
-    description = "run an algorithm on datasets of the session and store its result"
-    parameters = ParameterSet(
-        Parameter("algorithm", str, help="registered algorithm name"),
-        Parameter("as", str, "", help="run label, unique in the session: later steps name this run's "
-                                      "outputs '@label/output' (default: none)"),
-    )
+class AlgorithmStep(Step):
+    """Base of step kinds that run a registered algorithm, with its ``inputs`` and ``parameters`` tables.
+
+    :meth:`validate` checks the step's own keys (:attr:`parameters`), finds the algorithm that
+    :meth:`algorithm_name` names (an unknown one is reported at :attr:`algorithm_key`), adds the
+    problems of :meth:`check` (called once the algorithm is known) and then those of the two tables
+    (:func:`algorithm_tables`; the inputs of :meth:`provided` may be left out). The typed values hold
+    the tables as ``inputs`` and ``parameters``. :meth:`run_algorithm` runs it in :meth:`execute`.
+    """
+
     tables = ALGORITHM_TABLES
+    #: The key of the step's table that names the algorithm (blamed when no such algorithm is registered).
+    algorithm_key: ClassVar[str] = "algorithm"
+    #: What :meth:`run_algorithm` raises when the run fails.
+    failure: ClassVar[type[AlgorithmError]] = AlgorithmError
+
+    @classmethod
+    def algorithm_name(cls, values: Mapping[str, Any]) -> str:
+        """The registered algorithm the step runs, from its typed ``values`` (default: ``values[algorithm_key]``)."""
+        return str(values[cls.algorithm_key])
+
+    @classmethod
+    def provided(cls, values: Mapping[str, Any]) -> Collection[str]:
+        """Inputs of the algorithm that the step supplies itself, so the recipe need not name them."""
+        return ()
 
     @classmethod
     def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
@@ -139,15 +164,34 @@ class Run(Step):
         if problems:
             return values, problems
         try:
-            algorithm = registry.algorithm(values["algorithm"])
+            algorithm = registry.algorithm(cls.algorithm_name(values))
         except PluginError as exc:
-            return values, [Problem(f"{where}.algorithm", str(exc), file)]
-        inputs, params, problems = algorithm_tables(algorithm, table, where, file)
+            return values, [Problem(f"{where}.{cls.algorithm_key}", str(exc), file)]
+        problems = cls.check(values, where, file, registry)
+        inputs, params, more = algorithm_tables(algorithm, table, where, file, cls.provided(values))
         values.update(inputs=inputs, parameters=params)
-        reason = label_problem(values["as"], registry.names("algorithm")) if values.get("as") else None
-        if reason:
-            problems.append(Problem(f"{where}.as", reason, file))
-        return values, problems
+        return values, problems + more + instrument_problems(values, cls.instrument_keys, where, file, instruments)
+
+    def run_algorithm(self, session: Session, name: str, inputs: Mapping[str, Any], parameters: Mapping[str, Any],
+                      label: str | None = None) -> ResultRef:
+        """Run ``name`` on the session; a failed run (stored with its error) raises :attr:`failure`,
+        since later steps would only fail on its absence."""
+        return session.run(name, inputs, parameters, label=label).require_ok(self.failure)
+
+
+class Run(AlgorithmStep):
+    name = "run"
+    description = "run an algorithm on datasets of the session and store its result"
+    parameters = ParameterSet(
+        Parameter("algorithm", str, help="registered algorithm name"),
+        Parameter("as", str, "", help="run label, unique in the session: later steps name this run's "
+                                      "outputs '@label/output' (default: none)"),
+    )
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        reason = label_problem(values["as"], registry.names("algorithm")) if values["as"] else None
+        return [Problem(f"{where}.as", reason, file)] if reason else []
 
     @classmethod
     def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
@@ -156,9 +200,8 @@ class Run(Step):
                                        f"{session.path.name}; labels are unique in a session")] if taken else []
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        ref = session.run(values["algorithm"], values["inputs"], values["parameters"], label=values["as"] or None)
-        if ref.status != "ok":  # stored with its error; later steps would only fail on its absence
-            raise AlgorithmError(f"{ref.path} failed: {ref.error}")
+        self.run_algorithm(session, values["algorithm"], values["inputs"], values["parameters"],
+                           label=values["as"] or None)
 
 
 def algorithm_tables(algorithm: type[Algorithm], table: Mapping[str, Any], where: str, file: str | None,

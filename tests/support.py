@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import atexit
+import doctest
 import fcntl
+import importlib
 import os
 import shutil
 import subprocess
@@ -47,6 +49,12 @@ def built_once(tmp_path_factory: pytest.TempPathFactory, name: str, build: Calla
             build(folder)
             done.touch()
     return folder
+
+
+def assert_examples_pass(module: str) -> None:
+    """The Examples in the docstrings of ``module`` (a dotted name) run and pass, and there is at least one."""
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0, result
 
 
 def source_copy(dest: Path) -> Path:

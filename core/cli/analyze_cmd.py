@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import h5py
 
 from ..algorithms import Algorithm
-from ..errors import AlgorithmError, Problem, ValidationError
+from ..errors import Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
@@ -41,23 +41,30 @@ def _built(names: list[str], argv: Sequence[str] | None, command: str) -> set[st
     return {wanted} if wanted in names else set(names)
 
 
+def _named_parsers(sub: argparse._SubParsersAction, kind: str, argv: Sequence[str] | None,
+                   command: str) -> Iterator[tuple[str, Any, argparse.ArgumentParser]]:
+    """A sub-command of ``command`` per registered name of ``kind``: a bare name, unless parsing ``argv``
+    needs its options (:func:`_built`); those are yielded as ``(name, class, parser)`` for their options."""
+    reg = get_registry()
+    names = reg.names(kind)
+    built = _built(names, argv, command)
+    for name in names:
+        if name not in built:
+            sub.add_parser(name, add_help=False)
+            continue
+        try:
+            cls = reg.get(kind, name)
+        except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
+            continue
+        yield name, cls, sub.add_parser(name, help=cls.description, description=cls.description)
+
+
 def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> None:
     """Add ``analyze`` and ``record``; with ``argv`` naming an algorithm (instrument), only its options
     are built, so only the plugin providing it is imported (the others are names, never parsed)."""
-    reg = get_registry()
     a = sub.add_parser("analyze", help="run a registered algorithm on datasets of a session")
-    asub = a.add_subparsers(dest="algorithm", metavar="ALGORITHM", required=True)
-    names = reg.names("algorithm")
-    built = _built(names, argv, "analyze")
-    for name in names:
-        if name not in built:
-            asub.add_parser(name, add_help=False)
-            continue
-        try:
-            cls = reg.algorithm(name)
-        except Exception:  # a conflicting name: reported by `plugins doctor`, not offered here
-            continue
-        p = asub.add_parser(name, help=cls.description, description=cls.description)
+    for name, cls, p in _named_parsers(a.add_subparsers(dest="algorithm", metavar="ALGORITHM", required=True),
+                                       "algorithm", argv, "analyze"):
         p.add_argument("session", type=existing_path, help="session file (results are added to it)")
         ins = ", ".join(f"{i.name} ({i.description})" for i in cls.inputs)
         p.add_argument("--input", action="append", default=[], metavar="NAME=/DATASET",
@@ -69,18 +76,8 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.set_defaults(func=analyze, algorithm_name=name)
 
     r = sub.add_parser("record", help="record one instrument (real or simulated) into a new session")
-    rsub = r.add_subparsers(dest="instrument", metavar="INSTRUMENT", required=True)
-    names = reg.names("instrument")
-    built = _built(names, argv, "record")
-    for name in names:
-        if name not in built:
-            rsub.add_parser(name, add_help=False)
-            continue
-        try:
-            inst_cls = reg.instrument(name)
-        except Exception:
-            continue
-        p = rsub.add_parser(name, help=inst_cls.description, description=inst_cls.description)
+    for name, cls, p in _named_parsers(r.add_subparsers(dest="instrument", metavar="INSTRUMENT", required=True),
+                                       "instrument", argv, "record"):
         p.add_argument("--out", type=Path, required=True, help="session file to create")
         add_overwrite_option(p)
         p.add_argument("--seconds", type=duration, default=RECORD_SECONDS, metavar="S",
@@ -91,7 +88,7 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
         add_allow_empty_option(p)
-        add_parameter_options(p, inst_cls.parameters)
+        add_parameter_options(p, cls.parameters)
         p.set_defaults(func=record, instrument_name=name)
 
 
@@ -126,9 +123,7 @@ def analyze(args: argparse.Namespace) -> int:
     inputs, params = _checked(algorithm, args)
     with Session.open(args.session, writable=True) as s, progress_bar(not args.no_progress) as on_event:
         s.events.subscribe(on_event)
-        ref = s.run(algorithm, inputs, params, label=args.label)
-        if ref.status != "ok":  # stored with its error; said once, by main()
-            raise AlgorithmError(f"{ref.path} failed: {ref.error}")
+        ref = s.run(algorithm, inputs, params, label=args.label).require_ok()  # stored with its error; said once, by main()
         written = {name: (d.shape, d.dtype, d.attrs.get("unit", "")) for name, d in s.file[ref.path].items()
                    if isinstance(d, h5py.Dataset)}
     print(f"{args.session}: {ref.path}" + (f" (@{ref.label})" if ref.label else "") + ": ok")

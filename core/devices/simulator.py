@@ -155,6 +155,18 @@ class LineSimulator:
             raise CommandError("E02", f"usage: {usage}")
 
     @staticmethod
+    def keyword(args: list[str], usage: str) -> str:
+        """The one argument of a command whose ``usage`` ends in its choices (``STREAM ON|OFF``), upper-cased;
+        anything else answers ``ERR E02 usage: ...``.
+
+        >>> LineSimulator.keyword(["on"], "STREAM ON|OFF")
+        'ON'
+        """
+        if len(args) != 1 or args[0].upper() not in usage.split()[-1].split("|"):
+            raise CommandError("E02", f"usage: {usage}")
+        return args[0].upper()
+
+    @staticmethod
     def number(text: str, lo: float, hi: float, integer: bool = True) -> float:
         try:
             value = int(text) if integer else float(text)
@@ -182,10 +194,7 @@ class LineSimulator:
         yield f"OK {int(self.clock_ms)}"
 
     def cmd_STREAM(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "STREAM ON|OFF")
-        if args[0].upper() not in ("ON", "OFF"):
-            raise CommandError("E02", "usage: STREAM ON|OFF")
-        self.streaming = args[0].upper() == "ON"
+        self.streaming = self.keyword(args, "STREAM ON|OFF") == "ON"
         yield "OK"
 
     def cmd_ERR_Q(self, args: list[str]) -> Lines:
@@ -201,10 +210,7 @@ class LineSimulator:
         yield "OK"
 
     def cmd_SIM_CLOCK(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "SIM:CLOCK REAL|FAST")
-        if args[0].upper() not in ("REAL", "FAST"):
-            raise CommandError("E02", "usage: SIM:CLOCK REAL|FAST")
-        self.fast = args[0].upper() == "FAST"
+        self.fast = self.keyword(args, "SIM:CLOCK REAL|FAST") == "FAST"
         yield "OK"
 
     def cmd_SIM_FAULT(self, args: list[str]) -> Lines:
@@ -220,8 +226,7 @@ class LineSimulator:
         yield "OK"
 
     def cmd_SIM_FAULT_Q(self, args: list[str]) -> Lines:
-        for name, values in sorted(self.faults.items()):
-            yield f"FAULT {name} {' '.join(values) or '-'}"
+        yield from self.fault_lines()
         yield "OK"
 
     def cmd_SIM_TRUTH_Q(self, args: list[str]) -> Lines:
@@ -240,6 +245,10 @@ class LineSimulator:
     def fault_value(self, name: str, index: int = 0, default: float = 0.0) -> float:
         values = self.faults.get(name)
         return float(values[index]) if values and len(values) > index else default
+
+    def fault_lines(self) -> list[str]:
+        """``FAULT <name> <values>`` (``-`` for none) of every fault set, by name: ``SIM:FAULT?`` and the truth list them."""
+        return [f"FAULT {name} {' '.join(values) or '-'}" for name, values in sorted(self.faults.items())]
 
 
 class SimulatedWorld:

@@ -18,6 +18,8 @@ from collections.abc import Iterator
 import numpy as np
 from mirrorlab.core.devices import CommandError, Delay, LineSimulator
 from mirrorlab.core.devices.wire import encode_bits
+from mirrorlab.instruments.virtual_lab.line_sensor.detector import clock_argument, threshold_argument
+from mirrorlab.instruments.virtual_lab.simulators import SeededNoise, fault_usage
 
 from .film import PITCH_MM, PIXEL_MM, Film
 from .mechanics import CENTRE_STEPS, HOME_SEARCH_STEPS, STEP_S, STEPS_PER_LINE, Carrier, FeedFaults, LimitHit
@@ -25,8 +27,6 @@ from .optics import Optics, blurred_transmittance, video_counts
 
 Lines = Iterator["str | Delay"]
 
-MAX_CLOCK_HZ = 307_692           # 6502 host loop: 26 cycles per byte at 1 MHz
-MIN_CLOCK_HZ = 1_000
 MAX_LINES = 344                  # frame memory $4000-$95FF
 HEAD_LIMIT_LINES = math.ceil(2 * PITCH_MM / PIXEL_MM)   # E11 after two frame pitches
 WOBBLE_PERIOD_MM = 10.0          # carrier focus wobble repeats along the travel
@@ -59,7 +59,7 @@ DEFAULT_FAULTS: dict[str, list[str]] = {
 }
 
 
-class FilmScannerModel(LineSimulator):
+class FilmScannerModel(SeededNoise, LineSimulator):
     """Simulated FSCAN film digitiser.
 
     Parameters
@@ -80,7 +80,6 @@ class FilmScannerModel(LineSimulator):
     def __init__(self, film: Film | None = None, seed: int = 0, optics: Optics | None = None) -> None:
         self.film = film if film is not None else Film.generated()
         self.optics = optics or Optics()
-        self.np_rng = np.random.default_rng(seed)
         self.carrier = Carrier()
         self.last_scan: list[tuple[float, float]] = []
         self.busy_s = 0.0            # modelled operating time, s (drives the vibration phase)
@@ -112,10 +111,6 @@ class FilmScannerModel(LineSimulator):
     def cmd_STAT_Q(self, args: list[str]) -> Lines:
         yield f"OK {self.state} {','.join(sorted(self._flags())) or '-'}"
 
-    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
-        yield from super().cmd_SIM_SEED(args)
-        self.np_rng = np.random.default_rng(self.seed)
-
     def fault_names(self) -> tuple[str, ...]:
         return tuple(FAULTS)
 
@@ -125,7 +120,7 @@ class FilmScannerModel(LineSimulator):
             if name in FAULTS:
                 names, lows, highs = FAULTS[name]
                 if len(args) - 1 != len(names):
-                    raise CommandError("E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}")
+                    raise CommandError(*fault_usage(name, names))
                 for text, lo, hi in zip(args[1:], lows, highs):
                     self.number(text, lo, hi, integer=False)
         yield from super().cmd_SIM_FAULT(args)
@@ -217,16 +212,11 @@ class FilmScannerModel(LineSimulator):
 
     # -- FSCAN commands (§1.5) -------------------------------------------------------------------
     def cmd_CLK(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "CLK <Hz>")
-        hz = self.number(args[0], MIN_CLOCK_HZ, 5_000_000)
-        if hz > MAX_CLOCK_HZ:
-            raise CommandError("E03", f"{hz} Hz: the host loop cannot keep up above {MAX_CLOCK_HZ} Hz")
-        self.clock_hz = float(hz)
-        yield f"OK {int(hz)}"
+        self.clock_hz = clock_argument(args)
+        yield f"OK {int(self.clock_hz)}"
 
     def cmd_THR(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "THR <0-255>")
-        self.dac = int(self.number(args[0], 0, 255))
+        self.dac = threshold_argument(args)
         yield f"OK {self.dac}"
 
     def cmd_THR_Q(self, args: list[str]) -> Lines:
@@ -368,6 +358,6 @@ class FilmScannerModel(LineSimulator):
         ys = " ".join(f"{y:.5f}" for y, _ in self.last_scan) or "-"
         dxs = " ".join(f"{dx:.5f}" for _, dx in self.last_scan) or "-"
         out += [f"SCAN {n} {ys}", f"SCANDX {n} {dxs}"]
-        out += [f"FAULT {name} {' '.join(v) or '-'}" for name, v in sorted(self.faults.items())]
+        out += self.fault_lines()
         return out
 

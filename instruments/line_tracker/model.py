@@ -16,23 +16,20 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-from mirrorlab.core.devices import CommandError, LineSimulator
+from mirrorlab.core.devices import LineSimulator
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
-from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel, video_signal
-from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, SIGNAL_GAIN, detector_projection, optical_faults
+from mirrorlab.instruments.virtual_lab.line_sensor.sensor import FOCAL_MM, PITCH_MM, angle_to_pixel
+from mirrorlab.instruments.virtual_lab.line_sensor.view import OPTICAL_FAULTS, detector_projection, optical_faults
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
-    Sphere,
     TrackingWorld,
     axis_angles,
     turntable_world,
 )
 
 Lines = Iterator[str]
-BLUR_PX = 1.5                    # deliberate defocus (§3.2), px
-NOISE_COUNTS = 1.0               # read noise, counts
 TURNTABLE = {"radius": 160.0, "period": 1.84, "range": 1000.0}
 
 
@@ -54,18 +51,16 @@ class LineTrackerModel(ScannedLines, LineSimulator):
     model = "OLDT-512"
     firmware = "1.0"
     serial_number = "SIM0004"
+    load_usage = "SIM:LOAD TURNTABLE <radius> <period_s> <range> | STILL <deg> <range> | LINE <x y z vx vy vz>"
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or turntable_world())
         self.mount = np.asarray(mount, dtype=float)
         self.forward = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
-        self.np_rng = np.random.default_rng(seed)
         self.detector = OpticalDetector("M")
         self.pending: list[str] = []
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, turntable_world, seed)
         self.next_sample_ms = self.clock_ms
 
     def reset(self) -> None:
@@ -98,48 +93,32 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         """Video signal (counts) of a scan at world time ``t`` (s)."""
         faults = optical_faults(self.faults)
         proj = detector_projection(self.world, t, "H", 0.0, faults, eye=self.mount, reference=self.forward)
-        gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)
-        return video_signal(proj, self.detector.clock_hz, gain, math.hypot(BLUR_PX, faults.defocus_px),
-                            NOISE_COUNTS, self.np_rng)
+        return self.scan_signal(proj, self.detector.clock_hz, faults)
 
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time), scanning every ``512 / clock`` s
         (plus ``TIMINGJITTER``)."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
             self.detector.sample(self.signal(t), int(round(t * 1000.0)))
             line = self.detector.stream_line()
             if line:
                 self.pending.append(line)
-            jitter = self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
-            self.next_sample_ms += max(1e-3, self.detector.period_s + jitter) * 1000.0
+            self.next_sample_ms += self.scan_period(self.detector.period_s) * 1000.0
 
     # -- scenarios and truth -------------------------------------------------------------------------
-    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | TrackingWorld | None:
         """``SIM:LOAD TURNTABLE <radius mm> <period s> <range mm>`` | ``STILL <deg> <range mm>``
         | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (world mm, mm/s): replace the target."""
-        usage = "SIM:LOAD TURNTABLE <radius> <period_s> <range> | STILL <deg> <range> | LINE <x y z vx vy vz>"
-        if not args:
-            raise CommandError("E02", f"usage: {usage}")
-        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
-        t0 = self.clock_ms / 1000.0
         if kind == "TURNTABLE" and len(values) == 3 and values[1] > 0:
-            self.world = turntable_world(values[0], values[1], values[2], start_s=t0)
-            yield "OK"
-            return
+            return turntable_world(values[0], values[1], values[2], start_s=t0)
         if kind == "STILL" and len(values) == 2:
             a = math.radians(values[0])
-            path = Path(tuple(self.mount + values[1] * np.array([math.sin(a), 0.0, math.cos(a)])))
-        elif kind == "LINE" and len(values) == 6:
-            path = Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
-        else:
-            raise CommandError("E02", f"usage: {usage}")
-        target = self.world.spheres[0]
-        self.world = TrackingWorld((Sphere(path, target.radius, target.brightness), *self.world.spheres[1:]),
-                                   self.world.mirror_centre, self.world.camera, self.world.lamp,
-                                   self.world.mirror_size)
-        yield "OK"
+            return Path(tuple(self.mount + values[1] * np.array([math.sin(a), 0.0, math.cos(a)])))
+        if kind == "LINE" and len(values) == 6:
+            return Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
+        return None
 
     def truth_lines(self) -> list[str]:
         """``TIME <ms>``, ``TARGET <deg> <px>`` (true centre direction along the sensor and its pixel
@@ -151,5 +130,4 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         size = (math.tan(float(along) + half) - math.tan(float(along) - half)) * FOCAL_MM / PITCH_MM
         return [f"TIME {int(self.clock_ms)}",
                 f"TARGET {math.degrees(float(along)):.4f} {float(angle_to_pixel(along)):.3f}",
-                f"SIZE {size:.2f}",
-                *[f"FAULT {n} {' '.join(v) or '-'}" for n, v in sorted(self.faults.items())]]
+                f"SIZE {size:.2f}", *self.fault_lines()]

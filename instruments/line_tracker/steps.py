@@ -11,8 +11,8 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, Step
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
+from mirrorlab.core import Parameter, ParameterSet, Step, figures_folder
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 from mirrorlab.instruments.virtual_lab.line_sensor.sensor import CENTRE_PX, FOCAL_MM, PITCH_MM, angle_to_pixel
 from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 

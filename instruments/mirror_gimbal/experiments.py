@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from mirrorlab.instruments.virtual_lab.experiments import bisect_limit
+from mirrorlab.instruments.virtual_lab.experiments import bisect_limit, with_faults
 from numpy.typing import ArrayLike
 
 from .dynamics import AxisParams
@@ -31,11 +31,7 @@ def loses_target(rate: float, params: AxisParams | None = None, seed: int = 0, r
     >>> loses_target(math.radians(5.0)), loses_target(math.radians(40.0))
     (False, True)
     """
-    model = MirrorGimbalModel(seed=seed, params=params)
-    for fault in faults:
-        reply = model.execute(f"SIM:FAULT {fault}")
-        if reply != ["OK"]:
-            raise ValueError(f"SIM:FAULT {fault}: {reply[-1]}")
+    model = with_faults(MirrorGimbalModel(seed=seed, params=params), faults)
     model.execute(f"SIM:LOAD CIRCLE {-math.degrees(sweep) / 2:.6f} {math.degrees(rate):.6f} {range_mm:.3f} 1.0")
     model.execute("MODE H TRACK")
     end = 1.0 + sweep / rate

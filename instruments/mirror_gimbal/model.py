@@ -20,17 +20,15 @@ import numpy as np
 from mirrorlab.core.devices import CommandError, LineSimulator
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 from mirrorlab.instruments.virtual_lab.line_sensor.scanned_lines import ScannedLines
-from mirrorlab.instruments.virtual_lab.line_sensor.sensor import video_signal
 from mirrorlab.instruments.virtual_lab.line_sensor.view import (
     OPTICAL_FAULTS,
-    SIGNAL_GAIN,
     detector_projection,
     optical_faults,
 )
+from mirrorlab.instruments.virtual_lab.simulators import fault_usage
 from mirrorlab.instruments.virtual_lab.world import (
     Path,
     SharedWorld,
-    Sphere,
     TrackingWorld,
     image_in_mirror,
     mirror_normal,
@@ -46,8 +44,6 @@ STALL_S = 2.0                    # E42 after the drive is saturated this long wi
 STALL_RATE = math.radians(0.1)   # "still": below 0.1 deg/s
 POS_GAIN = 280.0                 # POS mode: volts per rad of mirror error (type-1 loop, K dt ~ 0.6)
 SOFT_LIMIT = math.radians(30.0)  # default LIMIT, mirror angle
-BLUR_PX = 1.5                    # deliberate defocus of the detector lens (§3.2), px
-NOISE_COUNTS = 1.0               # sensor read noise, counts
 
 #: name -> (argument names, whether the first argument is an axis)
 FAULTS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -100,17 +96,16 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
     model = "MGIM-1M"
     firmware = "1.0"
     serial_number = "SIM0003"
+    load_usage = ("SIM:LOAD STILL <h> <v> <range> | CIRCLE <h0> <rate> <range> <start_s> | "
+                  "LINE <x> <y> <z> <vx> <vy> <vz>")
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  params: AxisParams | None = None) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld())
         self.base_params = params or AxisParams()
-        self.np_rng = np.random.default_rng(seed)
         self.axes = {a: Axis(a, self.base_params, detector=OpticalDetector(f"{a}:M")) for a in AXES}
         self.pending: list[str] = []
         self._stream_on = False
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, TrackingWorld, seed)
         self.next_sample_ms = self.clock_ms
         self.pose_on_target()
 
@@ -156,7 +151,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
             name = args[0].upper()
             names, per_axis = FAULTS[name]
             if len(args) - 1 != len(names):
-                raise CommandError("E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}")
+                raise CommandError(*fault_usage(name, names))
             values = args[1:]
             if per_axis:
                 values = [self._axis_name(values[0]), *values[1:]]
@@ -173,8 +168,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         self._apply_mechanical_faults()
 
     def _axis_fault(self, name: str, axis: str, default: float) -> float:
-        values = self.faults.get(f"{name} {axis}")
-        return float(values[0]) if values else default
+        return self.fault_value(f"{name} {axis}", 0, default)
 
     def _apply_mechanical_faults(self) -> None:
         for a, axis in self.axes.items():
@@ -195,11 +189,10 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time); run every detector scan and control
         step that falls due."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         while self.next_sample_ms <= self.clock_ms:
             t = self.next_sample_ms / 1000.0
-            period = self.period_s + self.np_rng.uniform(-1, 1) * self.fault_value("TIMINGJITTER") / 1000.0
-            period = max(period, 1e-3)
+            period = self.scan_period(self.period_s)
             self.scene.note_mirror(t, self.axes["H"].state.mirror, self.axes["V"].state.mirror)
             for axis in self.axes.values():
                 self._sample_axis(axis, t)
@@ -211,9 +204,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         faults = optical_faults(self.faults)
         proj = detector_projection(self.world, t, axis.name, axis.state.detector_angle(axis.params), faults,
                                    self.fault_value("PARALLAX"))
-        gain = SIGNAL_GAIN * (10.0 if faults.saturate else 1.0)
-        blur = math.hypot(BLUR_PX, faults.defocus_px)
-        return video_signal(proj, axis.detector.clock_hz, gain, blur, NOISE_COUNTS, self.np_rng)
+        return self.scan_signal(proj, axis.detector.clock_hz, faults)
 
     def _sample_axis(self, axis: Axis, t: float) -> None:
         ms = int(round(t * 1000.0))
@@ -357,32 +348,26 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         yield f"OK {axis.deadband:g}"
 
     # -- scenarios and truth -------------------------------------------------------------------------
-    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | None:
         """``SIM:LOAD STILL <h deg> <v deg> <range mm>`` | ``CIRCLE <h0 deg> <rate deg/s> <range mm> <start s>``
-        | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (mm, mm/s): replace the target; the detectors are turned onto it."""
-        usage = ("SIM:LOAD STILL <h> <v> <range> | CIRCLE <h0> <rate> <range> <start_s> | "
-                 "LINE <x> <y> <z> <vx> <vy> <vz>")
-        if not args:
-            raise CommandError("E02", f"usage: {usage}")
-        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
-        t0 = self.clock_ms / 1000.0
+        | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (mm, mm/s): replace the target."""
         c = self.world.camera_direction
         if kind == "STILL" and len(values) == 3:
             h, v, r = math.radians(values[0]), math.radians(values[1]), values[2]
-            path = Path(tuple(r * mirror_normal(h, v, c)))
-        elif kind == "CIRCLE" and len(values) == 4:
+            return Path(tuple(r * mirror_normal(h, v, c)))
+        if kind == "CIRCLE" and len(values) == 4:
             h0, rate, r, start = math.radians(values[0]), math.radians(values[1]), values[2], values[3]
             az0 = math.atan2(c[0], c[2]) + h0
-            path = Path(radius=r, rate=rate, phase=az0, start_s=t0 + start)
-        elif kind == "LINE" and len(values) == 6:
-            path = Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
-        else:
-            raise CommandError("E02", f"usage: {usage}")
-        target = self.world.spheres[0]
-        self.world = replace(self.world, spheres=(Sphere(path, target.radius, target.brightness),
-                                                  *self.world.spheres[1:]))
+            return Path(radius=r, rate=rate, phase=az0, start_s=t0 + start)
+        if kind == "LINE" and len(values) == 6:
+            return Path(tuple(values[:3]), tuple(values[3:]), start_s=t0)
+        return None
+
+    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+        """``SIM:LOAD`` (:meth:`scenario`), then the detectors are turned onto the new target."""
+        replies = list(super().cmd_SIM_LOAD(args))
         self.pose_on_target()
-        yield "OK"
+        yield from replies
 
     def truth_lines(self) -> list[str]:
         """``TIME``, ``TARGET``, ``AXIS`` per axis, ``NORMAL``, ``INMIRROR`` and ``FAULT`` lines.
@@ -405,5 +390,4 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         out.append("NORMAL " + " ".join(f"{x:.6f}" for x in normal))
         inside = image_in_mirror(w.camera, target, w.mirror_centre, normal, w.mirror_size, w.spheres[0].radius)
         out.append(f"INMIRROR {int(inside)}")
-        out += [f"FAULT {name} {' '.join(v) or '-'}" for name, v in sorted(self.faults.items())]
-        return out
+        return out + self.fault_lines()

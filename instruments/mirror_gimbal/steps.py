@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, schema
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, figures_folder, schema
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 from mirrorlab.instruments.virtual_lab.world import image_in_mirror, mirror_normal
 from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 

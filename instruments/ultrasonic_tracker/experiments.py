@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from mirrorlab.instruments.virtual_lab.experiments import bisect_limit
+from mirrorlab.instruments.virtual_lab.experiments import bisect_limit, with_faults
 from mirrorlab.instruments.virtual_lab.worlds import TRACKING_WORLD, build_world
 
 from .model import DEFAULT_SERVO, TARGET_RADIUS, Servo, UltrasonicTrackerModel
@@ -61,10 +61,7 @@ def loses_target(rate: float, servo: Servo | None = DEFAULT_SERVO, seed: int = 0
     >>> loses_target(math.radians(10.0)), loses_target(math.radians(50.0))
     (False, True)
     """
-    model = UltrasonicTrackerModel(seed=seed, servo=servo)
-    for fault in faults:
-        if model.execute(f"SIM:FAULT {fault}") != ["OK"]:
-            raise ValueError(f"SIM:FAULT {fault} refused")
+    model = with_faults(UltrasonicTrackerModel(seed=seed, servo=servo), faults)
     half = math.degrees(sweep) / 2
     model.execute(f"AIM {-half:.6f} 0")
     model.advance(1.0)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mirrorlab.core.devices import CommandError, Delay, LineSimulator
+from mirrorlab.instruments.virtual_lab.simulators import SeededNoise, fault_usage
 from mirrorlab.instruments.virtual_lab.world import InWorld, Path, SharedWorld, Sphere, TrackingWorld
 
 from .acoustics import PITCH, speed_of_sound, wavenumber
@@ -70,7 +71,7 @@ FAULTS: dict[str, tuple[str, ...]] = {
 }
 
 
-class UltrasonicTrackerModel(InWorld, LineSimulator):
+class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
     """Simulated USDF tracker.
 
     Parameters
@@ -91,22 +92,19 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
     model = "USDF-12"
     firmware = "1.0"
     serial_number = "SIM0002"
+    load_usage = "SIM:LOAD STILL <th1> <th2> <range> | CIRCLE <th1> <rate> <range> <start_s> | LINE <x y z vx vy vz>"
 
     def __init__(self, world: TrackingWorld | SharedWorld | None = None, seed: int = 0,
                  servo: Servo | None = DEFAULT_SERVO, mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
                  forward: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
-        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or TrackingWorld(
-            (Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),)))
         self.servo = servo
         self.mount = np.asarray(mount, dtype=float)
         x = np.asarray(forward, dtype=float) / np.linalg.norm(forward)
         y = np.array([0.0, 1.0, 0.0])
         self.frame = np.stack([x, y, np.cross(x, y)])     # rows: tracker axes in world coordinates
-        self.np_rng = np.random.default_rng(seed)
         self.theta = np.zeros(2)
         self.rate = np.zeros(2)
-        super().__init__(seed)
-        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+        super().__init__(world, lambda: TrackingWorld((Sphere(Path((0.0, 0.0, 1300.0)), radius=TARGET_RADIUS),)), seed)
         self.physics_s = self.clock_ms / 1000.0
 
     # -- state -------------------------------------------------------------------------------------
@@ -151,10 +149,6 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         times = [t for t, _ in self.pending] + ([self.next_cycle_s] if self.tracking else [])
         return 1000.0 * min(times) if times else None
 
-    def cmd_SIM_SEED(self, args: list[str]) -> Lines:
-        yield from super().cmd_SIM_SEED(args)
-        self.np_rng = np.random.default_rng(self.seed)
-
     def fault_names(self) -> tuple[str, ...]:
         return tuple(FAULTS)
 
@@ -163,7 +157,7 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
             name = args[0].upper()
             names = FAULTS[name]
             if len(args) - 1 != len(names):
-                raise CommandError("E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}")
+                raise CommandError(*fault_usage(name, names))
             for text, what in zip(args[1:], names):
                 value = self.number(text, -1e6, 1e6, integer=False)
                 if what == "axis" and value not in (1, 2):
@@ -182,8 +176,7 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         return self.fault_value("TEMP", 0, 20.6)         # 344 m/s, the thesis's value
 
     def _servo_gain(self, axis: int) -> float:
-        values = self.faults.get(f"SERVOGAIN {axis + 1}")
-        return float(values[0]) if values else 1.0
+        return self.fault_value(f"SERVOGAIN {axis + 1}", 0, 1.0)
 
     def _integrate(self, until_s: float) -> None:
         """Move the platform toward its set-point up to physics time ``until_s``."""
@@ -208,7 +201,7 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
     def advance(self, seconds: float) -> None:
         """Advance the clock (a shared world's: up to its time): the platform moves, and in TRACK mode
         search cycles run as they fall due."""
-        super().advance(self.scene.catch_up(seconds, self.clock_ms))
+        super().advance(seconds)
         now = self.clock_ms / 1000.0
         while self.tracking and self.next_cycle_s <= now:
             self.send_due_lines()   # the previous cycle's line leaves before this one is computed
@@ -360,10 +353,7 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         yield f"OK {math.degrees(self.psi):.2f} {math.degrees(delta):.2f}"
 
     def cmd_BEAM(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "BEAM 0|A|B|C|D")
-        if args[0].upper() not in ("0", "A", "B", "C", "D"):
-            raise CommandError("E02", "usage: BEAM 0|A|B|C|D")
-        self.beam = args[0].upper()
+        self.beam = self.keyword(args, "BEAM 0|A|B|C|D")
         yield "OK"
 
     def _now(self) -> float:
@@ -415,10 +405,7 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         yield "OK"
 
     def cmd_TRACK(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "TRACK ON|OFF")
-        if args[0].upper() not in ("ON", "OFF"):
-            raise CommandError("E02", "usage: TRACK ON|OFF")
-        on = args[0].upper() == "ON"
+        on = self.keyword(args, "TRACK ON|OFF") == "ON"
         if on and not self.tracking:
             self.next_cycle_s = self._now()
             self.missed = 0
@@ -428,36 +415,25 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         yield "OK"
 
     # -- scenarios and truth -------------------------------------------------------------------------
-    def cmd_SIM_LOAD(self, args: list[str]) -> Lines:
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | None:
         """``SIM:LOAD STILL <th1 deg> <th2 deg> <range mm>`` | ``CIRCLE <th1 deg> <rate deg/s> <range mm> <start s>``
         | ``LINE <x> <y> <z> <vx> <vy> <vz>`` (tracker frame, mm, mm/s): replace the target."""
-        usage = "SIM:LOAD STILL <th1> <th2> <range> | CIRCLE <th1> <rate> <range> <start_s> | LINE <x y z vx vy vz>"
-        if not args:
-            raise CommandError("E02", f"usage: {usage}")
-        kind, values = args[0].upper(), [self.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
-        t0 = self._now()
         to_world = self.frame.T
         if kind == "STILL" and len(values) == 3:
             d = np.array([math.cos(math.radians(values[1])) * math.cos(math.radians(values[0])),
                           math.sin(math.radians(values[1])),
                           -math.cos(math.radians(values[1])) * math.sin(math.radians(values[0]))])
-            path = Path(tuple(self.mount + to_world @ (values[2] * d)))
-        elif kind == "CIRCLE" and len(values) == 4:
+            return Path(tuple(self.mount + to_world @ (values[2] * d)))
+        if kind == "CIRCLE" and len(values) == 4:
             # about the vertical through the tracker; world phase measured from +z toward +x
             fwd = self.frame[0]
             az0 = math.atan2(fwd[0], fwd[2]) + math.radians(values[0])
-            path = Path(tuple(self.mount), radius=values[2], rate=math.radians(values[1]), phase=az0,
+            return Path(tuple(self.mount), radius=values[2], rate=math.radians(values[1]), phase=az0,
                         start_s=t0 + values[3])
-        elif kind == "LINE" and len(values) == 6:
-            path = Path(tuple(self.mount + to_world @ np.array(values[:3])), tuple(to_world @ np.array(values[3:])),
+        if kind == "LINE" and len(values) == 6:
+            return Path(tuple(self.mount + to_world @ np.array(values[:3])), tuple(to_world @ np.array(values[3:])),
                         start_s=t0)
-        else:
-            raise CommandError("E02", f"usage: {usage}")
-        target = self.world.spheres[0]
-        self.world = TrackingWorld((Sphere(path, target.radius, target.brightness), *self.world.spheres[1:]),
-                                   self.world.mirror_centre, self.world.camera, self.world.lamp,
-                                   self.world.mirror_size)
-        yield "OK"
+        return None
 
     def target_angles(self, t: float) -> tuple[float, float]:
         """Platform angles ``(theta1, theta2)`` that point the array axis at the target at ``t``, rad."""
@@ -478,5 +454,4 @@ class UltrasonicTrackerModel(InWorld, LineSimulator):
         return [f"TIME {int(self.clock_ms)}",
                 f"TARGET {math.degrees(t1):.4f} {math.degrees(t2):.4f} {np.linalg.norm(v):.1f}",
                 f"PLATFORM {th[0]:.4f} {th[1]:.4f}", f"ERROR {error:.4f}",
-                f"SOUND {speed_of_sound(self.celsius) / 1000:.2f}",
-                *[f"FAULT {n} {' '.join(v) or '-'}" for n, v in sorted(self.faults.items())]]
+                f"SOUND {speed_of_sound(self.celsius) / 1000:.2f}", *self.fault_lines()]

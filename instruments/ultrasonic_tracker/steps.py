@@ -12,8 +12,8 @@ from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, Step
-from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, figures_folder, plot_traces
+from mirrorlab.core import Parameter, ParameterSet, Step, figures_folder
+from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
 
 from .experiments import stage_tracking

@@ -8,7 +8,8 @@ lab is a direct frame source (:meth:`VirtualLab.frames`) and the film of the FSC
 (:meth:`VirtualLab.film`). Units: mm, s, rad, px.
 
 The package is also what the other simulators share, importing only the core: the tracking
-world (:mod:`.world`, :mod:`.worlds`), the line-sensor detector (:mod:`.line_sensor`) and the
+world and its ``SIM:LOAD`` (:mod:`.world`, :mod:`.worlds`), the line-sensor detector
+(:mod:`.line_sensor`), the device models' seeded noise and fault usage (:mod:`.simulators`) and the
 trackers' experiment and figure helpers (:mod:`.experiments`, :mod:`.figures`).
 """
 

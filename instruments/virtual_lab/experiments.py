@@ -2,14 +2,20 @@
 
 :func:`bisect_limit`: the smallest target rate at which a tracker loses its target, by bisection,
 given the experiment that says whether one rate is lost (each tracker has its own).
+:func:`with_faults`: a model with ``SIM:FAULT`` settings, for an experiment under faults.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from typing import TypeVar
 
-__all__ = ["bisect_limit"]
+from mirrorlab.core.devices import LineSimulator
+
+__all__ = ["bisect_limit", "with_faults"]
+
+M = TypeVar("M", bound=LineSimulator)
 
 
 def bisect_limit(loses: Callable[[float], bool], lo: float, hi: float, tol: float) -> float:
@@ -32,3 +38,25 @@ def bisect_limit(loses: Callable[[float], bool], lo: float, hi: float, tol: floa
         else:
             lo = mid
     return (lo + hi) / 2
+
+
+def with_faults(model: M, faults: Iterable[str]) -> M:
+    """``model`` after ``SIM:FAULT <fault>`` for each of ``faults`` (argument strings such as ``"BACKLASH H 0"``).
+
+    Raises
+    ------
+    ValueError
+        The model refused one: its error reply is named.
+
+    Examples
+    --------
+    >>> with_faults(LineSimulator(), ["LEAK 1"])
+    Traceback (most recent call last):
+    ...
+    ValueError: SIM:FAULT LEAK 1: ERR E03 unknown fault LEAK; known: -
+    """
+    for fault in faults:
+        reply = model.execute(f"SIM:FAULT {fault}")
+        if reply != ["OK"]:
+            raise ValueError(f"SIM:FAULT {fault}: {reply[-1]}")
+    return model

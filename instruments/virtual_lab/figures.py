@@ -11,22 +11,16 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
-__all__ = ["Panel", "Trace", "figures_folder", "plot_traces", "traces_figure"]
+__all__ = ["Panel", "Trace", "plot_traces", "traces_figure"]
 
 #: z-order of an ``on_top`` trace: above lines and markers (2), below the legend (5).
 ON_TOP = 3.0
-
-
-def figures_folder(session: Any, given: str) -> Path:
-    """``given``, or ``<session stem>-figures`` beside the session file."""
-    return Path(given) if given else session.path.with_name(session.path.stem + "-figures")
 
 
 @dataclass(frozen=True)
@@ -68,12 +62,7 @@ def plot_traces(path: os.PathLike[str] | str, panels: Sequence[Panel], title: st
     >>> p.stat().st_size > 0
     True
     """
-    fig = traces_figure(panels, title)
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(out, dpi=100)
-    return out
+    return save_figure(traces_figure(panels, title), path)
 
 
 def traces_figure(panels: Sequence[Panel], title: str = "") -> Figure:

@@ -15,10 +15,12 @@ from __future__ import annotations
 import bisect
 import math
 import threading
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
 
 import numpy as np
+from mirrorlab.core.devices import CommandError, LineSimulator
 from numpy.typing import ArrayLike, NDArray
 
 FloatArray = NDArray[np.float64]
@@ -271,13 +273,31 @@ class SharedWorld:
 
 
 class InWorld:
-    """Mixin of a simulator model that sees a :class:`SharedWorld` as ``self.scene``.
+    """Mixin (before :class:`~mirrorlab.core.devices.LineSimulator`) of a simulator model that sees a
+    :class:`SharedWorld` as ``self.scene`` and runs on its clock (:meth:`advance`).
 
-    :attr:`world` is the scene now; setting it (``SIM:LOAD``) changes it for every simulator of
-    the world.
+    :attr:`world` is the scene now; setting it changes it for every simulator of the world.
+    ``SIM:LOAD <scenario> <numbers...>`` sets it: the model's :meth:`scenario` says what a
+    scenario loads (answering the usage :attr:`load_usage` to anything else), and the first
+    sphere, the target, moves onto that path keeping its size and brightness
+    (:func:`with_target`).
     """
 
     scene: SharedWorld
+    clock_ms: float
+    #: The scenarios of ``SIM:LOAD``, as its usage error names them.
+    load_usage: ClassVar[str] = "SIM:LOAD <scenario> <numbers...>"
+
+    def __init__(self, world: TrackingWorld | SharedWorld | None, default: Callable[[], TrackingWorld],
+                 seed: int = 0) -> None:
+        """See ``world`` if it is shared, else a private world of ``world`` or ``default()``; start at its time."""
+        self.scene = world if isinstance(world, SharedWorld) else SharedWorld(world or default())
+        super().__init__(seed)  # type: ignore[call-arg]  # the LineSimulator after this mixin
+        self.clock_ms = self.scene.now() * 1000.0     # a shared world's clock; 0 for a private one
+
+    def advance(self, seconds: float) -> None:
+        """Advance the clock by ``seconds``; on a shared world up to the world's time instead (:meth:`SharedWorld.catch_up`)."""
+        super().advance(self.scene.catch_up(seconds, self.clock_ms))  # type: ignore[misc]
 
     @property
     def world(self) -> TrackingWorld:
@@ -287,6 +307,34 @@ class InWorld:
     @world.setter
     def world(self, world: TrackingWorld) -> None:
         self.scene.world = world
+
+    def scenario(self, kind: str, values: list[float], t0: float) -> Path | TrackingWorld | None:
+        """What ``SIM:LOAD <kind> <values>`` loads at time ``t0`` (s): the target's new path, a whole new
+        world, or ``None`` when it is not a scenario of this simulator (or has the wrong numbers)."""
+        return None
+
+    def cmd_SIM_LOAD(self, args: list[str]) -> Iterator[str]:
+        """``SIM:LOAD <scenario> <numbers...>``: replace the target (see :meth:`scenario`)."""
+        if not args:
+            raise CommandError("E02", f"usage: {self.load_usage}")
+        values = [LineSimulator.number(a, -1e6, 1e6, integer=False) for a in args[1:]]
+        loaded = self.scenario(args[0].upper(), values, self.clock_ms / 1000.0)
+        if loaded is None:
+            raise CommandError("E02", f"usage: {self.load_usage}")
+        self.world = loaded if isinstance(loaded, TrackingWorld) else with_target(self.world, loaded)
+        yield "OK"
+
+
+def with_target(world: TrackingWorld, path: Path) -> TrackingWorld:
+    """``world`` with its target (the first sphere) on ``path``: its size, brightness and the rest unchanged.
+
+    Examples
+    --------
+    >>> w = with_target(TrackingWorld(), Path((100.0, 0.0, 2000.0)))
+    >>> w.target_position(0.0).tolist(), w.spheres[0].radius == TrackingWorld().spheres[0].radius
+    ([100.0, 0.0, 2000.0], True)
+    """
+    return replace(world, spheres=(replace(world.spheres[0], path=path), *world.spheres[1:]))
 
 
 def world_truth(world: TrackingWorld, t: float, mirror: ArrayLike = (0.0, 0.0)) -> dict[str, FloatArray]:

@@ -11,22 +11,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
 __all__ = ["angles_figure", "derivatives_figure", "plot_angles", "plot_derivatives", "plot_rigid", "rigid_figure"]
 
 #: At most this many markers are drawn individually; the rest are summarised by the legend text.
 MAX_TRACES = 8
-
-
-def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(p, dpi=100)
-    return p
 
 
 def _norm(x: np.ndarray) -> np.ndarray:
@@ -45,7 +37,7 @@ def plot_derivatives(path: os.PathLike[str] | str, t: ArrayLike, labels: Sequenc
     >>> p.stat().st_size > 0
     True
     """
-    return _save(derivatives_figure(t, labels, smoothed, velocity, acceleration, title), path)
+    return save_figure(derivatives_figure(t, labels, smoothed, velocity, acceleration, title), path)
 
 
 def derivatives_figure(t: ArrayLike, labels: Sequence[str], smoothed: ArrayLike, velocity: ArrayLike,
@@ -94,7 +86,7 @@ def plot_angles(path: os.PathLike[str] | str, t: ArrayLike, angles: Mapping[str,
     >>> plot_angles(os.path.join(tempfile.mkdtemp(), "a.png"), t, {"theta3": t}).stat().st_size > 0
     True
     """
-    return _save(angles_figure(t, angles, title, reference), path)
+    return save_figure(angles_figure(t, angles, title, reference), path)
 
 
 def angles_figure(t: ArrayLike, angles: Mapping[str, ArrayLike], title: str = "",
@@ -142,7 +134,7 @@ def plot_rigid(path: os.PathLike[str] | str, t: ArrayLike, omega: ArrayLike, rms
     >>> plot_rigid(os.path.join(tempfile.mkdtemp(), "r.png"), t, w, H=w).stat().st_size > 0
     True
     """
-    return _save(rigid_figure(t, omega, rms, H, title), path)
+    return save_figure(rigid_figure(t, omega, rms, H, title), path)
 
 
 def rigid_figure(t: ArrayLike, omega: ArrayLike, rms: ArrayLike | None = None, H: ArrayLike | None = None,

@@ -269,9 +269,7 @@ def read_c3d(path: os.PathLike[str] | str) -> MarkerData:
     >>> d = read_c3d(p); d.labels, d.rate, d.points.shape
     (['A', 'B', 'C'], 100.0, (4, 3, 3))
     """
-    p = Path(path)
-    if not p.is_file():
-        raise KinematicsIOError(f"{p}: no such C3D file")
+    p = _existing(path, "C3D")
     _check_c3d_frames(p)
     c = read_c3d_arrays(p)
     data = c.points  # (4, M, T)
@@ -301,6 +299,14 @@ def _declared(value: object) -> int | None:
         return int(str(value).strip())
     except ValueError:
         return None
+
+
+def _existing(path: str | os.PathLike[str], kind: str) -> Path:
+    """``path`` as a :class:`Path`, or :class:`KinematicsIOError` naming it when it is no file (``kind``: C3D, TRC...)."""
+    p = Path(path)
+    if not p.is_file():
+        raise KinematicsIOError(f"{p}: no such {kind} file")
+    return p
 
 
 def _check_rows(p: Path, text: str, declared: int | None, rows: int, last: tuple[int, int, int] | None) -> None:
@@ -346,9 +352,7 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
     KinematicsIOError
         On a malformed header or data row.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise KinematicsIOError(f"{p}: no such TRC file")
+    p = _existing(path, "TRC")
     text = p.read_text(errors="replace")
     lines = text.splitlines()
     if not lines or not lines[0].startswith("PathFileType"):
@@ -428,9 +432,7 @@ def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
     KinematicsIOError
         On a malformed header or data row.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise KinematicsIOError(f"{p}: no such TSV file")
+    p = _existing(path, "TSV")
     text = p.read_text(errors="replace")
     lines = text.splitlines()
     hdr: dict[str, list[str]] = {}

@@ -34,15 +34,13 @@ class ImportMarkers(Step):
     )
 
     @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.scalars(table, where, file)
-        if not problems and not Path(values["file"]).is_file():
-            problems.append(Problem(f"{where}.file", f"no such marker file {str(values['file'])!r}", file))
-        suffix = Path(values["file"]).suffix.lower() if not problems else ""
-        if not problems and values["format"] == "auto" and suffix not in (".c3d", ".trc", ".tsv"):
-            problems.append(Problem(f"{where}.format", "cannot tell the format from the suffix; set format", file))
-        return values, problems
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        path = Path(values["file"])
+        if not path.is_file():
+            return [Problem(f"{where}.file", f"no such marker file {str(values['file'])!r}", file)]
+        if values["format"] == "auto" and path.suffix.lower() not in (".c3d", ".trc", ".tsv"):
+            return [Problem(f"{where}.format", "cannot tell the format from the suffix; set format", file)]
+        return []
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         from .store import import_markers

@@ -12,22 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
 __all__ = ["four_bar_figure", "plot_centrodes", "plot_four_bar", "plot_swept", "plot_walls", "walls_figure"]
 
 LINK_COLOURS = {0: ("ground", "0.4"), 1: ("input", "tab:blue"), 2: ("coupler", "tab:orange"), 3: ("output", "tab:green"),
                 -1: ("unassigned", "tab:red")}
-
-
-def _save(fig: Figure, path: os.PathLike[str] | str) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(p, dpi=100)
-    return p
 
 
 def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLike, joints: ArrayLike,
@@ -41,7 +34,7 @@ def plot_four_bar(path: os.PathLike[str] | str, tracks: ArrayLike, link: ArrayLi
     >>> plot_four_bar(os.path.join(tempfile.mkdtemp(), "f.png"), j, [0, 1, 2, 3], j).stat().st_size > 0
     True
     """
-    return _save(four_bar_figure(tracks, link, joints, title, every, unit), path)
+    return save_figure(four_bar_figure(tracks, link, joints, title, every, unit), path)
 
 
 def four_bar_figure(tracks: ArrayLike, link: ArrayLike, joints: ArrayLike, title: str = "reconstructed four-bar",
@@ -75,6 +68,14 @@ def four_bar_figure(tracks: ArrayLike, link: ArrayLike, joints: ArrayLike, title
     return fig
 
 
+def _rods(ax: Axes, A: np.ndarray, B: np.ndarray, every: int, colour: str, path_of_a: str) -> None:
+    """The rod A-B every ``every`` samples in ``colour`` (one legend entry), then A's path labelled ``path_of_a``."""
+    for n, k in enumerate(range(0, len(A), max(1, every))):
+        ax.plot([A[k, 0], B[k, 0]], [A[k, 1], B[k, 1]], "-", color=colour, lw=0.8,
+                label="rod positions" if n == 0 else None)
+    ax.plot(A[:, 0], A[:, 1], "-", color="k", lw=1.5, label=path_of_a)
+
+
 def plot_swept(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, region: shapely.Geometry | None = None,
                title: str = "swept region", every: int = 20, unit: str = "mm") -> Path:
     """Rod positions every ``every`` samples and the swept region (a shapely geometry) filled."""
@@ -88,17 +89,14 @@ def plot_swept(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, region:
                 x, y = poly.exterior.xy
                 ax.fill(x, y, color="tab:orange", alpha=0.35, lw=0,
                         label=f"swept region, area {region.area:.5g} {unit}²" if n == 0 else None)
-    for n, k in enumerate(range(0, len(A), max(1, every))):
-        ax.plot([A[k, 0], B[k, 0]], [A[k, 1], B[k, 1]], "-", color="tab:blue", lw=0.8,
-                label="rod positions" if n == 0 else None)
-    ax.plot(A[:, 0], A[:, 1], "-", color="k", lw=1.5, label="path of A")
+    _rods(ax, A, B, every, "tab:blue", "path of A")
     ax.plot(B[:, 0], B[:, 1], "--", color="k", lw=1.0, label="path of B")
     ax.set_aspect("equal")
     ax.set_xlabel(f"x ({unit})")
     ax.set_ylabel(f"y ({unit})")
     ax.set_title(title)
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fixed: ArrayLike, moving: ArrayLike,
@@ -107,10 +105,7 @@ def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fix
     A, B, F, Mv = (np.asarray(v, float) for v in (a, b, fixed, moving))
     fig = Figure(figsize=(11, 4.8))
     ax, bx = fig.subplots(1, 2)
-    for n, k in enumerate(range(0, len(A), max(1, every))):
-        ax.plot([A[k, 0], B[k, 0]], [A[k, 1], B[k, 1]], "-", color="0.6", lw=0.8,
-                label="rod positions" if n == 0 else None)
-    ax.plot(A[:, 0], A[:, 1], "-", color="k", lw=1.5, label="wall (path of A)")
+    _rods(ax, A, B, every, "0.6", "wall (path of A)")
     ax.plot(F[:, 0], F[:, 1], "-", color="tab:red", lw=1.5, label="fixed centrode")
     ax.set_title("fixed centrode (world)")
     bx.plot(Mv[:, 0], Mv[:, 1], "-", color="tab:purple", lw=1.5, label="moving centrode")
@@ -123,13 +118,13 @@ def plot_centrodes(path: os.PathLike[str] | str, a: ArrayLike, b: ArrayLike, fix
         axis.set_ylabel(f"y ({unit})")
         axis.legend(fontsize=8, loc="best")
     fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_walls(path: os.PathLike[str] | str, walls: Mapping[str, tuple[ArrayLike, ArrayLike]],
                title: str = "guiding walls", unit: str = "l units", polylines: Collection[str] = ()) -> Path:
     """Write :func:`walls_figure` to the PNG file ``path``."""
-    return _save(walls_figure(walls, title, unit, polylines), path)
+    return save_figure(walls_figure(walls, title, unit, polylines), path)
 
 
 def walls_figure(walls: Mapping[str, tuple[ArrayLike, ArrayLike]], title: str = "guiding walls",

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, figures_folder
 
 from .fourbar import LINK_NAMES
 from .swept import strip_area, swept_region
@@ -28,10 +27,6 @@ __all__ = ["STEPS", "FourBarReport", "WallReport", "format_four_bar", "format_wa
 #: Thesis figures for the wall problem (§6.2.1): arc grid minimum, optimal wall, its cost.
 THESIS_WALL = {"arc_area": 2.552, "optimal_area": 2.486, "start_area": 2.649, "hours": 50.0, "updates": 262,
                "area_calls": 32_756}
-
-
-def _folder(session: Session, given: str) -> Path:
-    return Path(given) if given else session.path.with_name(session.path.stem + "-figures")
 
 
 def _ok_runs(session: Session, algorithm: str) -> list[ResultData]:
@@ -114,7 +109,7 @@ class FourBarReport(Step):
         else:
             true_vals = list(values["true_lengths"])
         true = dict(zip(LINK_NAMES, true_vals, strict=True))
-        folder = _folder(session, values["figures"])
+        folder = figures_folder(session, values["figures"])
         runs, figures = [], []
         for r in _ok_runs(session, "four_bar"):
             method = r.attrs["parameters"].get("method", "least_squares")
@@ -185,7 +180,7 @@ class WallReport(Step):
                          **{k: float(o[k]) for k in ("area", "area_positions", "area_thesis", "area_grid", "start_area",
                                                      "seconds")},
                          "iterations": int(o["iterations"]), "evaluations": int(o["evaluations"])})
-        folder = _folder(session, values["figures"])
+        folder = figures_folder(session, values["figures"])
         best = walls[-1].outputs
         a, b = wall_motion(best["w"], 3.0, n, best["nodes"])
         y = np.linspace(0, 3, 301)

@@ -78,9 +78,7 @@ def store_calibration(session: Session, camera: str, ref: ResultRef, extra: Mapp
     CalibrationError
         The run failed (its error is repeated); nothing is written.
     """
-    if ref.status != "ok":
-        raise CalibrationError(f"{ref.path} failed: {ref.error}")
-    result = session.result(ref)
+    result = session.result(ref.require_ok(CalibrationError))
     arrays = {**result.outputs, **(extra or {})}
     path = f"calibration/{camera}"
     session.write_group(path, arrays, {"result": ref.path, "algorithm": ref.algorithm, "model": camera_kind(arrays),

@@ -149,9 +149,7 @@ def _run(session: Session | None, algorithm: type[Algorithm], inputs: dict[str, 
     with progress_bar(progress) as on_event:
         if session is not None:
             session.events.subscribe(on_event)
-            ref = session.run(algorithm, inputs, params)
-            if ref.status != "ok":
-                raise PhotogrammetryError(f"{ref.path} failed: {ref.error}")
+            ref = session.run(algorithm, inputs, params).require_ok(PhotogrammetryError)
             return session.result(ref).outputs, ref.path
         bus = EventBus(SessionClock())
         bus.subscribe(on_event)

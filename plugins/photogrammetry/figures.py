@@ -10,12 +10,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
 __all__ = ["error_map_figure", "min_shooting_distance_figure", "mirror_angle_sweep_figure", "plot_error_map",
            "plot_min_shooting_distance", "plot_mirror_angle_sweep"]
+
+#: Resolution of the PNG files, dots per inch.
+DPI = 110
 
 
 def min_shooting_distance_figure(theta: ArrayLike, dtheta: ArrayLike, L_min: ArrayLike) -> Figure:
@@ -43,7 +46,7 @@ def plot_min_shooting_distance(theta: ArrayLike, dtheta: ArrayLike, L_min: Array
     >>> p.exists()
     True
     """
-    return _save(min_shooting_distance_figure(theta, dtheta, L_min), path)
+    return save_figure(min_shooting_distance_figure(theta, dtheta, L_min), path, dpi=DPI)
 
 
 def error_map_figure(points: ArrayLike, errors: ArrayLike, center: ArrayLike | None = None, title: str = "",
@@ -77,7 +80,7 @@ def plot_error_map(points: ArrayLike, errors: ArrayLike, path: str | Path, cente
     >>> p.exists()
     True
     """
-    return _save(error_map_figure(points, errors, center, title, scale), path)
+    return save_figure(error_map_figure(points, errors, center, title, scale), path, dpi=DPI)
 
 
 def mirror_angle_sweep_figure(angles: ArrayLike, errors: ArrayLike, reference: float | None = 0.68) -> Figure:
@@ -107,12 +110,4 @@ def plot_mirror_angle_sweep(angles: ArrayLike, errors: ArrayLike, path: str | Pa
     >>> p.exists()
     True
     """
-    return _save(mirror_angle_sweep_figure(angles, errors, reference), path)
-
-
-def _save(fig: Figure, path: str | Path) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(p, dpi=110)
-    return p
+    return save_figure(mirror_angle_sweep_figure(angles, errors, reference), path, dpi=DPI)

@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import ALGORITHM_TABLES, Algorithm, Parameter, ParameterSet, PluginError, Problem, Step, algorithm_tables
+from mirrorlab.core import AlgorithmStep, Parameter, ParameterSet, Problem
 
 from .calibration_io import calibration_inputs, chessboard_inputs, parse_pattern, require_new_camera, store_calibration
 from .errors import InvalidArgument, PhotogrammetryError
@@ -17,14 +17,7 @@ if TYPE_CHECKING:
     from mirrorlab.core import Registry, Session
 
 
-def _lookup(registry: Registry, name: str, key: str, file: str | None) -> tuple[type[Algorithm] | None, list[Problem]]:
-    try:
-        return registry.algorithm(name), []
-    except PluginError as exc:
-        return None, [Problem(key, str(exc), file)]
-
-
-class Calibrate(Step):
+class Calibrate(AlgorithmStep):
     """``action = "calibrate"``: calibrate a camera and store it under ``/calibration/<camera>``.
 
     Either ``inputs`` (dataset paths of the session) for ``calibrate_plane`` / ``calibrate_pinhole``,
@@ -35,7 +28,6 @@ class Calibrate(Step):
     name = "calibrate"
     version = "1.0.0"
     description = "calibrate a camera (plane map or pinhole) and store it under /calibration/<camera>"
-    tables = ALGORITHM_TABLES
     parameters = ParameterSet(
         Parameter("camera", str, help="camera name: the result goes to /calibration/<camera>"),
         Parameter("algorithm", str, "calibrate_plane", choices=("calibrate_plane", "calibrate_pinhole"),
@@ -48,29 +40,24 @@ class Calibrate(Step):
     )
 
     @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.scalars(table, where, file)
-        if problems:
-            return values, problems
-        algorithm, problems = _lookup(registry, values["algorithm"], f"{where}.algorithm", file)
-        if algorithm is None:
-            return values, problems
-        provided: set[str] = set()
-        if values["images"]:
-            if values["algorithm"] != "calibrate_pinhole":
-                problems.append(Problem(f"{where}.images", "images need algorithm = \"calibrate_pinhole\"", file))
-            try:
-                parse_pattern(values["pattern"])
-            except InvalidArgument as exc:
-                problems.append(Problem(f"{where}.pattern", str(exc), file))
-            if values["square"] <= 0:
-                problems.append(Problem(f"{where}.square", "required with images: the chessboard square side in "
-                                                           "mm, e.g. square = 25", file))
-            provided = {"object_points", "image_points", "image_size"}
-        inputs, typed, more = algorithm_tables(algorithm, table, where, file, provided)
-        values.update(inputs=inputs, parameters=typed)
-        return values, problems + more
+    def provided(cls, values: Mapping[str, Any]) -> set[str]:
+        return {"object_points", "image_points", "image_size"} if values["images"] else set()
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        if not values["images"]:
+            return []
+        problems = []
+        if values["algorithm"] != "calibrate_pinhole":
+            problems.append(Problem(f"{where}.images", "images need algorithm = \"calibrate_pinhole\"", file))
+        try:
+            parse_pattern(values["pattern"])
+        except InvalidArgument as exc:
+            problems.append(Problem(f"{where}.pattern", str(exc), file))
+        if values["square"] <= 0:
+            problems.append(Problem(f"{where}.square", "required with images: the chessboard square side in "
+                                                       "mm, e.g. square = 25", file))
+        return problems
 
     @classmethod
     def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
@@ -96,42 +83,36 @@ class Calibrate(Step):
         store_calibration(session, values["camera"], ref, extra, attrs)
 
 
-class Reconstruct(Step):
+class Reconstruct(AlgorithmStep):
     """``action = "reconstruct"``: a reconstruction algorithm with the camera of ``/calibration/<camera>``."""
 
     name = "reconstruct"
     version = "1.0.0"
     description = "reconstruct 3-D markers (parallel, central or mirror) from 2-D marker data of the session"
-    tables = ALGORITHM_TABLES
+    algorithm_key = "method"
+    failure = PhotogrammetryError
     parameters = ParameterSet(
         Parameter("method", str, "mirror", choices=("parallel", "central", "mirror"), help="reconstruction method"),
         Parameter("calibration", str, "", help="calibration group giving the camera, e.g. /calibration/cam"),
     )
 
     @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.scalars(table, where, file)
-        if problems:
-            return values, problems
-        algorithm, problems = _lookup(registry, f"reconstruct_{values['method']}", f"{where}.method", file)
-        if algorithm is None:
-            return values, problems
+    def algorithm_name(cls, values: Mapping[str, Any]) -> str:
+        return f"reconstruct_{values['method']}"
+
+    @classmethod
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
         if values["calibration"] and not values["calibration"].startswith("/"):
-            problems.append(Problem(f"{where}.calibration", "must be a group path such as '/calibration/cam'", file))
-        inputs, typed, more = algorithm_tables(algorithm, table, where, file, set())
-        values.update(inputs=inputs, parameters=typed)
-        return values, problems + more
+            return [Problem(f"{where}.calibration", "must be a group path such as '/calibration/cam'", file)]
+        return []
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
-        name = f"reconstruct_{values['method']}"
+        name = self.algorithm_name(values)
         inputs = dict(values["inputs"])
         if values["calibration"]:
             cls = session.registry.algorithm(name)
             inputs = {**calibration_inputs(session, values["calibration"], cls), **inputs}
-        ref = session.run(name, inputs, values["parameters"])
-        if ref.status != "ok":
-            raise PhotogrammetryError(f"{ref.path} failed: {ref.error}")
+        self.run_algorithm(session, name, inputs, values["parameters"])
 
 
 STEPS = [Calibrate, Reconstruct]

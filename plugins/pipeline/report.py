@@ -23,9 +23,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from mirrorlab.core import schema
+from mirrorlab.core import save_figure, schema
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
@@ -447,11 +446,5 @@ def angular_figure(r: DemoReport) -> Figure:
 def write_figures(r: DemoReport, folder: str | Path) -> list[str]:
     """``trajectories.png`` (:func:`trajectories_figure`) and ``angular.png`` (:func:`angular_figure`)
     in ``folder``; returns their paths."""
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, fig in (("trajectories.png", trajectories_figure(r)), ("angular.png", angular_figure(r))):
-        FigureCanvasAgg(fig)
-        fig.savefig(out / name, dpi=110)
-        paths.append(str(out / name))
-    return paths
+    return [str(save_figure(fig, Path(folder) / name, dpi=110))
+            for name, fig in (("trajectories.png", trajectories_figure(r)), ("angular.png", angular_figure(r)))]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Parameter, ParameterSet, Step
+from mirrorlab.core import Parameter, ParameterSet, Step, figures_folder
 
 if TYPE_CHECKING:
     from mirrorlab.core import Session
@@ -29,7 +29,7 @@ class Report(Step):
 
         session.events.progress(self.name, 0, 2, "comparing with truth")
         report = build_report(session, values["instrument"])
-        folder = values["figures"] or str(session.path.with_name(session.path.stem + "-figures"))
+        folder = figures_folder(session, values["figures"])
         session.events.progress(self.name, 1, 2, "figures")
         report.figures = write_figures(report, folder)
         report.store(session)

@@ -6,8 +6,8 @@ import os
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from mirrorlab.core import save_figure
 from numpy.typing import ArrayLike
 
 __all__ = ["plot_chains"]
@@ -67,8 +67,4 @@ def plot_chains(path: os.PathLike[str] | str, input_joints: ArrayLike, output_jo
     axf.legend(fontsize=8)
     fig.suptitle(title or "chain shape approximation")
     fig.tight_layout()
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    FigureCanvasAgg(fig)
-    fig.savefig(p, dpi=100)
-    return p
+    return save_figure(fig, path)

@@ -48,18 +48,15 @@ class RetargetStep(Step):
     )
 
     @classmethod
-    def validate(cls, table: Mapping[str, Any], where: str, file: str | None,
-                 registry: Registry, instruments: Mapping[str, Any]) -> tuple[dict[str, Any], list[Problem]]:
-        values, problems = cls.scalars(table, where, file)
-        if problems:
-            return values, problems
+    def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
+        problems = []
         if not values["file"].is_file():
             problems.append(Problem(f"{where}.file", f"no such motion file {str(values['file'])!r}", file))
         try:
             chain_from(values)
         except ChainDefinitionError as exc:
             problems.append(Problem(f"{where}.lengths", str(exc), file))
-        return values, problems
+        return problems
 
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         motion = read_motion(Path(values["file"]), [j.strip() for j in values["joints"].split(",")], values["scale"],

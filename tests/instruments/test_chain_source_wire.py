@@ -34,7 +34,7 @@ from mirrorlab.instruments.reference.models import ChainSourceModel
 from mirrorlab.plugins.kinematics.io import write_c3d
 from mirrorlab.plugins.retarget import Chain
 
-from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
+from tests.instruments.transcripts import replay_on_model, scripted_driver, transcripts
 from tests.tolerances import roundoff
 
 SIMULATOR, DRIVER = [t for t in transcripts("reference.md") if any("CHNS" in line for line in t)]
@@ -46,27 +46,16 @@ def test_simulator_answers_the_documented_transcript() -> None:
 
 
 def test_driver_sends_the_documented_bytes_and_parses_the_stream() -> None:
-    device = ScriptedDevice(DRIVER)
     router, clock = StreamRouter(), SessionClock()
-    source = ChainSource("mocap", port=str(device.path), settings={"rate": 120.0, "joints": "RightArm,RightHand"},
-                         timeout=2.0)
-    emit = Emitter("mocap", router, clock, {s.name: s for s in source.streams()})
     stop = threading.Event()
-    try:
-        source.connect()
-        source.identify()
-        source.configure()
+    with scripted_driver(DRIVER, ChainSource, "mocap", {"rate": 120.0, "joints": "RightArm,RightHand"}) as source:
+        emit = Emitter("mocap", router, clock, {s.name: s for s in source.streams()})
         with router.subscribe([("mocap", "joints"), ("mocap", "frame")]) as live:
             thread = threading.Thread(target=source.acquire, args=(emit, stop))
             thread.start()
             blocks = [live.get(timeout=10) for _ in range(4)]
             stop.set()
             thread.join(10)
-        source.close()
-    finally:
-        device.close()
-    assert device.error is None, device.error
-    assert device.done.is_set()
     joints = [b for b in blocks if b.stream == "joints"]
     frames = [int(b.values[0]) for b in blocks if b.stream == "frame"]
     assert frames == [7, 8]

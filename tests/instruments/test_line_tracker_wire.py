@@ -13,7 +13,7 @@ from mirrorlab.core.errors import ProtocolError
 from mirrorlab.instruments.line_tracker import LineTracker, LineTrackerModel
 from mirrorlab.instruments.line_tracker.driver import parse_mark
 
-from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
+from tests.instruments.transcripts import replay_on_model, scripted_driver, transcripts
 
 SIMULATOR, DRIVER = transcripts("line_tracker.md")
 
@@ -23,19 +23,9 @@ def test_simulator_answers_the_documented_transcript() -> None:
 
 
 def test_driver_sends_the_documented_bytes() -> None:
-    device = ScriptedDevice(DRIVER)
-    try:
-        tracker = LineTracker("l", port=str(device.path), timeout=2.0)
-        tracker.connect()
-        tracker.identify()
-        tracker.configure()
+    with scripted_driver(DRIVER, LineTracker, "l") as tracker:
         first, second = tracker.read()["mark"], tracker.read()["mark"]
         runs = tracker.runs()
-        tracker.close()
-    finally:
-        device.close()
-    assert device.error is None, device.error
-    assert device.done.is_set()
     np.testing.assert_array_equal(first, [[255.5, 62, 128, 1]])
     assert np.isnan(second[0, [0, 1, 3]]).all() and second[0, 2] == 128
     np.testing.assert_array_equal(runs, [[115, 176], [336, 394]])

@@ -16,7 +16,7 @@ from mirrorlab.core.errors import ProtocolError
 from mirrorlab.instruments.mirror_gimbal import MirrorGimbal, MirrorGimbalModel
 from mirrorlab.instruments.mirror_gimbal.driver import SETPOINT_AXIS, parse_sample
 
-from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
+from tests.instruments.transcripts import replay_on_model, scripted_driver, transcripts
 from tests.tolerances import roundoff
 
 SIMULATOR, DRIVER = transcripts("mirror_gimbal.md")
@@ -27,20 +27,10 @@ def test_simulator_answers_the_documented_transcript() -> None:
 
 
 def test_driver_sends_the_documented_bytes() -> None:
-    device = ScriptedDevice(DRIVER)
-    try:
-        gimbal = MirrorGimbal("g", port=str(device.path), timeout=2.0)
-        gimbal.connect()
-        gimbal.identify()
-        gimbal.configure()
+    with scripted_driver(DRIVER, MirrorGimbal, "g") as gimbal:
         gimbal.set("h_angle", 0.05).wait()
         gimbal.hold()
         reading = gimbal.read()
-        gimbal.close()
-    finally:
-        device.close()
-    assert device.error is None, device.error
-    assert device.done.is_set()
     assert gimbal.identity is not None and gimbal.identity.model == "GM-2"
     np.testing.assert_allclose(reading["h"], [[256.5, 1.5, math.radians(2.865)]], rtol=roundoff(ops=2))  # parsed text
     assert np.isnan(reading["v"][0, :2]).all() and reading["v"][0, 2] == 0.0

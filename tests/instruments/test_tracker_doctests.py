@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import doctest
-import importlib
-
 import pytest
+
+from tests.support import assert_examples_pass
 
 MODULES = [
     "mirrorlab.instruments.virtual_lab.line_sensor.sensor",
     "mirrorlab.instruments.virtual_lab.line_sensor.view",
+    "mirrorlab.instruments.virtual_lab.line_sensor.detector",
+    "mirrorlab.instruments.virtual_lab.simulators",
     "mirrorlab.instruments.line_tracker.driver",
     "mirrorlab.instruments.line_tracker.experiments",
     "mirrorlab.instruments.virtual_lab.world",
@@ -30,5 +31,4 @@ MODULES = [
 
 @pytest.mark.parametrize("name", MODULES)
 def test_module_examples(name: str) -> None:
-    result = doctest.testmod(importlib.import_module(name), optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert result.attempted > 0 and result.failed == 0
+    assert_examples_pass(name)

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from mirrorlab.core.clock import SessionClock
-from mirrorlab.core.streams import Emitter, StreamRouter
 from mirrorlab.core.testing import InstrumentConformance
 from mirrorlab.instruments.ultrasonic_tracker import UltrasonicTracker
 
+from tests.instruments.faults import every_fault_while_acquiring
 from tests.instruments.test_ultrasonic_model import EFFECTS
 
 
@@ -21,19 +20,4 @@ class TestUltrasonicConformance(InstrumentConformance):
 def test_every_sim_fault_over_the_pty_while_acquiring(simulated_instrument: Any) -> None:
     with simulated_instrument(UltrasonicTracker, {}) as (inst, _):
         inst.configure()
-        router, clock = StreamRouter(), SessionClock()
-        specs = {s.name: s for s in inst.streams()}
-        sub = router.subscribe([("dut", "direction")], max_bytes=1 << 28)
-        inst.start(Emitter("dut", router, clock, specs))
-        try:
-            for fault in sorted(EFFECTS):
-                assert inst.simulate_query(f"SIM:FAULT {fault}").fields == []
-                before = clock.now()
-                block = None
-                while block is None or block.times[-1] <= before:
-                    block = sub.get(timeout=30.0)
-                    assert block is not None, f"no search cycle after SIM:FAULT {fault}"
-            assert len(inst.simulate_query("SIM:FAULT?").data) == len(EFFECTS)
-        finally:
-            inst.stop()
-        assert inst.failed is None
+        every_fault_while_acquiring(inst, "direction", EFFECTS, "search cycle")

@@ -15,7 +15,7 @@ from mirrorlab.core.errors import DeviceReplyError, ProtocolError
 from mirrorlab.instruments.ultrasonic_tracker import UltrasonicTracker, UltrasonicTrackerModel
 from mirrorlab.instruments.ultrasonic_tracker.driver import parse_cycle
 
-from tests.instruments.transcripts import ScriptedDevice, replay_on_model, transcripts
+from tests.instruments.transcripts import replay_on_model, scripted_driver, transcripts
 from tests.tolerances import roundoff
 
 SIMULATOR, DRIVER = transcripts("ultrasonic_tracker.md")
@@ -26,21 +26,11 @@ def test_simulator_answers_the_documented_transcript() -> None:
 
 
 def test_driver_sends_the_documented_bytes() -> None:
-    device = ScriptedDevice(DRIVER)
-    try:
-        tracker = UltrasonicTracker("u", port=str(device.path), timeout=2.0)
-        tracker.connect()
-        tracker.identify()
-        tracker.configure()
+    with scripted_driver(DRIVER, UltrasonicTracker, "u") as tracker:
         aimed = tracker.aim(0.01, 0.0)
         with pytest.raises(DeviceReplyError, match="E20"):
             tracker.measure()
         reading = tracker.read()
-        tracker.close()
-    finally:
-        device.close()
-    assert device.error is None, device.error
-    assert device.done.is_set()
     # parsed from the wire's text and converted to rad: a rounding or two
     assert aimed == pytest.approx((math.radians(0.625), 0.0), rel=roundoff(ops=2))
     np.testing.assert_allclose(reading["direction"], [[math.radians(0.625), 0.0, 133.125, 0, 0, 0]], rtol=roundoff(ops=2))

@@ -3,7 +3,8 @@
 A transcript is a plain fenced block of lines ``> command`` (host to device), ``< reply`` (device
 to host) and ``… N ms`` (time passing). :func:`replay_on_model` checks a simulator against it in
 process; :class:`ScriptedDevice` plays the device side byte for byte to a real driver, so the
-driver's wire format is pinned independently of the simulator.
+driver's wire format is pinned independently of the simulator (:func:`scripted_driver` connects
+one to it and checks the whole script was played).
 """
 
 from __future__ import annotations
@@ -13,14 +14,19 @@ import re
 import select
 import threading
 import tty
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, TypeVar
 
+from mirrorlab.core.devices import Instrument
 from mirrorlab.core.devices.simulator import LineSimulator
 
 from tests.support import REPO
 from tests.test_docs import blocks
 
 WAIT = re.compile(r"^… (\d+) ms$")
+I = TypeVar("I", bound=Instrument)
 
 
 def transcripts(doc: str) -> list[list[str]]:
@@ -99,3 +105,25 @@ class ScriptedDevice:
     def close(self) -> None:
         os.close(self.master)
         os.close(self._slave)
+
+
+@contextmanager
+def scripted_driver(script: list[str], cls: type[I], label: str,
+                    settings: Mapping[str, Any] | None = None) -> Iterator[I]:
+    """The driver ``cls`` connected, identified and configured to a :class:`ScriptedDevice` playing ``script``.
+
+    On leaving the block the driver and the device are closed, and the device must have seen exactly
+    the script's bytes, all of them.
+    """
+    device = ScriptedDevice(script)
+    try:
+        inst = cls(label, port=str(device.path), settings=settings, timeout=2.0)
+        inst.connect()
+        inst.identify()
+        inst.configure()
+        yield inst
+        inst.close()
+    finally:
+        device.close()
+    assert device.error is None, device.error
+    assert device.done.is_set()

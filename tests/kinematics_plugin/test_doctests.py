@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import doctest
-import importlib
-
 import pytest
+
+from tests.support import assert_examples_pass
 
 
 @pytest.mark.parametrize("name", ["store", "algorithms", "figures"])
-def test_module_examples(name):
-    mod = importlib.import_module(f"mirrorlab.plugins.kinematics.{name}")
-    res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert res.failed == 0 and res.attempted > 0
+def test_module_examples(name: str) -> None:
+    assert_examples_pass(f"mirrorlab.plugins.kinematics.{name}")

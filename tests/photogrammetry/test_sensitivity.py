@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import doctest
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +15,6 @@ from mirrorlab.plugins.photogrammetry.sensitivity import (
     THESIS_GRID_X,
     THESIS_GRID_Y,
     THESIS_MIRROR_ERRORS,
-    MirrorScene,
     accuracy_statistics,
     central_error_map,
     central_point_sensitivity,
@@ -34,22 +31,7 @@ from mirrorlab.plugins.photogrammetry.sensitivity import (
 from tests.photogrammetry.bounds import plane_ray_error, triangulation_roundoff
 from tests.tolerances import roundoff
 
-ROOT = Path(__file__).resolve().parents[2]
 CAM = CentralCamera(2687.0, 54.0, np.radians(12.0))
-
-
-@pytest.fixture(scope="module")
-def validation():
-    path = ROOT / "docs" / "validation" / "photogrammetry_thesis.py"
-    spec = importlib.util.spec_from_file_location("photogrammetry_thesis", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return MirrorScene.thesis()
 
 
 def test_doctests():

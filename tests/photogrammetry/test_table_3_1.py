@@ -2,32 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 from mirrorlab.plugins.photogrammetry.mirror import triangulate_mirror
-from mirrorlab.plugins.photogrammetry.sensitivity import MirrorScene
 
 from tests.photogrammetry.bounds import triangulation_roundoff
 
-ROOT = Path(__file__).resolve().parents[2]
 MARKER = np.array([[100.0, 50.0, 300.0]])
-
-
-@pytest.fixture(scope="module")
-def validation():
-    path = ROOT / "docs" / "validation" / "photogrammetry_thesis.py"
-    spec = importlib.util.spec_from_file_location("photogrammetry_thesis_t31", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return MirrorScene.thesis()
 
 
 @pytest.mark.parametrize("angle", [0.45, 0.68, 0.873, 1.15])

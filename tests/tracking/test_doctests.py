@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import doctest
-import importlib
-
 import pytest
+
+from tests.support import assert_examples_pass
 
 MODULES = ["track"]
 
 
 @pytest.mark.parametrize("name", MODULES)
 def test_module_examples(name: str) -> None:
-    mod = importlib.import_module(".".join(filter(None, ["mirrorlab.plugins.tracking", name])))
-    res = doctest.testmod(mod, optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert res.failed == 0 and res.attempted > 0
+    assert_examples_pass(".".join(filter(None, ["mirrorlab.plugins.tracking", name])))

@@ -47,6 +47,34 @@ class Mark:
         return f"{self.ms} {m} {d} {self.threshold} {self.nruns}"
 
 
+def clock_argument(args: list[str]) -> float:
+    """The sensor clock (Hz) of ``CLK <Hz>``: a line sensor read by the 6502 host loop (this detector's and
+    the film scanner's), which cannot keep up above :data:`~.sensor.MAX_CLOCK_HZ`.
+
+    Examples
+    --------
+    >>> clock_argument(["73000"])
+    73000.0
+    """
+    LineSimulator.expect(args, 1, "CLK <Hz>")
+    hz = LineSimulator.number(args[0], MIN_CLOCK_HZ, 5_000_000)
+    if hz > MAX_CLOCK_HZ:
+        raise CommandError("E03", f"{hz} Hz: the host loop cannot keep up above {MAX_CLOCK_HZ} Hz")
+    return float(hz)
+
+
+def threshold_argument(args: list[str]) -> int:
+    """The comparator threshold (counts) of ``THR <0-255>``.
+
+    Examples
+    --------
+    >>> threshold_argument(["120"])
+    120
+    """
+    LineSimulator.expect(args, 1, "THR <0-255>")
+    return int(LineSimulator.number(args[0], 0, 255))
+
+
 class OpticalDetector:
     """State and OLDT commands of one detector; :meth:`sample` processes one scan.
 
@@ -119,16 +147,11 @@ class OpticalDetector:
         return handler(words[1:])
 
     def cmd_CLK(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "CLK <Hz>")
-        hz = LineSimulator.number(args[0], MIN_CLOCK_HZ, 5_000_000)
-        if hz > MAX_CLOCK_HZ:
-            raise CommandError("E03", f"{hz} Hz: the host loop cannot keep up above {MAX_CLOCK_HZ} Hz")
-        self.clock_hz = float(hz)
-        yield f"OK {int(hz)} {self.period_s * 1000:.1f}"
+        self.clock_hz = clock_argument(args)
+        yield f"OK {int(self.clock_hz)} {self.period_s * 1000:.1f}"
 
     def cmd_THR(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "THR <0-255>")
-        self.threshold = int(LineSimulator.number(args[0], 0, 255))
+        self.threshold = threshold_argument(args)
         yield f"OK {self.threshold}"
 
     def cmd_THR_Q(self, args: list[str]) -> Lines:
@@ -177,15 +200,9 @@ class OpticalDetector:
         yield "OK"
 
     def cmd_SELECT(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "SELECT WIDEST|NEAREST|FIRST")
-        if args[0].upper() not in RULES:
-            raise CommandError("E02", "usage: SELECT WIDEST|NEAREST|FIRST")
-        self.rule = args[0].upper()
+        self.rule = LineSimulator.keyword(args, f"SELECT {'|'.join(RULES)}")
         yield "OK"
 
     def cmd_STREAM(self, args: list[str]) -> Lines:
-        LineSimulator.expect(args, 1, "STREAM ON|OFF")
-        if args[0].upper() not in ("ON", "OFF"):
-            raise CommandError("E02", "usage: STREAM ON|OFF")
-        self.streaming = args[0].upper() == "ON"
+        self.streaming = LineSimulator.keyword(args, "STREAM ON|OFF") == "ON"
         yield "OK"

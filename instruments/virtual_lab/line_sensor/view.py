@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..simulators import fault_usage
 from ..world import TrackingWorld, axis_angles
 from .sensor import FIELD_ACROSS, pixel_angles, sphere_projection
 
@@ -84,7 +85,7 @@ def check_optical_fault(name: str, values: list[str]) -> tuple[str, str] | None:
     """
     names = OPTICAL_FAULTS[name]
     if len(values) != len(names):
-        return "E02", f"usage: SIM:FAULT {name} {' '.join('<' + n + '>' for n in names)}"
+        return fault_usage(name, names)
     try:
         numbers = [float(v) for v in values]
     except ValueError:
