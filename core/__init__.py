@@ -12,6 +12,10 @@ its helpers, ``execute`` (run an algorithm without a session), the CLI helpers o
 
 Names other than the errors are imported on first use (PEP 562), so that light entry points such
 as ``mirrorlab --version`` (``mirrorlab.core.cli``) do not pay for numpy and h5py.
+
+A session's file is read through the ``Session`` read API (``read``, ``attributes``, ``tree``,
+``stream``, ``results``...; its ``Node``, ``StreamData`` and ``ResultData``), never through h5py;
+``is_hdf5`` says whether a file is HDF5 at all.
 """
 
 from __future__ import annotations
@@ -54,15 +58,17 @@ if TYPE_CHECKING:
     from .hookspecs import hookimpl
     from .params import Parameter, ParameterSet
     from .registry import Registry, get_registry
-    from .session import ResultData, Session
+    from .session import Node, ResultData, Session, StreamData
     from .steps import ALGORITHM_TABLES, Step, algorithm_tables
     from .store import schema
+    from .store.files import is_hdf5
     from .streams import Block, StreamSpec
 
 #: Public name -> the sub-module that defines it (imported when the name is first used).
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
          "execute": "algorithms", "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params",
          "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
+         "StreamData": "session", "Node": "session", "is_hdf5": "store.files",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
          "algorithm_tables": "steps", "SessionClock": "clock", "EventBus": "events",
@@ -79,6 +85,7 @@ __all__ = [
     "StoppedOnRequest", "StreamSpec", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
     "progress_bar", "schema",
+    "Node", "StreamData", "is_hdf5",
 ]
 
 

@@ -7,7 +7,8 @@ import importlib
 
 import pytest
 
-MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
+MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.store.reader", "mirrorlab.core.store.session_file",
+           "mirrorlab.core.cli.options",
            "mirrorlab.core.batch.chunks", "mirrorlab.core.digests", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
            "mirrorlab.core.tui.ticks",
            "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming", "mirrorlab.core.devices.wire"]
