@@ -154,11 +154,6 @@ class Session:
         return self._runtime.recorded_seconds
 
     @property
-    def file(self) -> Any:
-        """The h5py file, for the code that has not moved to the read API yet."""
-        return self._store.file
-
-    @property
     def executor(self) -> Any:
         """What computes :meth:`run` (``None``: this process); see
         :attr:`Compute.executor <mirrorlab.core.compute.Compute.executor>`."""

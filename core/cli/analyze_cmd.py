@@ -7,8 +7,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import h5py
-
 from ..algorithms import Algorithm
 from ..errors import AlgorithmError, Problem, ValidationError
 from ..registry import get_registry
@@ -129,8 +127,8 @@ def analyze(args: argparse.Namespace) -> int:
         ref = s.run(algorithm, inputs, params, label=args.label)
         if ref.status != "ok":  # stored with its error; said once, by main()
             raise AlgorithmError(f"{ref.path} failed: {ref.error}")
-        written = {name: (d.shape, d.dtype, d.attrs.get("unit", "")) for name, d in s.file[ref.path].items()
-                   if isinstance(d, h5py.Dataset)}
+        outputs = [s.node(f"{ref.path}/{name}") for name in s.members(ref.path)]
+        written = {n.name: (n.shape, n.dtype, n.unit) for n in outputs if n.is_dataset}
     print(f"{args.session}: {ref.path}" + (f" (@{ref.label})" if ref.label else "") + ": ok")
     for name, (shape, dtype, unit) in written.items():
         print(f"  {ref.path}/{name}: {shape} {dtype}" + (f" [{unit}]" if unit else ""))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from mirrorlab.core import Node, Session, SessionError
@@ -91,6 +92,13 @@ def test_a_missing_path_is_one_line_naming_it(recorded: Path, call, message: str
     text = str(raised.value)
     assert text.startswith(message) and str(recorded) in text and "\n" not in text
     assert "mirrorlab session tree" in text or "truth groups here: cam" in text  # what to do
+
+
+def test_a_session_hands_out_no_h5py_file(recorded: Path) -> None:
+    """The read API replaces the raw handle: a session has no ``file`` to touch."""
+    with Session.open(recorded) as s:
+        assert not hasattr(s, "file")
+        assert not any(isinstance(v, h5py.HLObject) for v in vars(s).values())
 
 
 def test_reading_while_recording_sees_what_the_recorder_flushed(tmp_path: Path) -> None:

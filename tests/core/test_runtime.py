@@ -12,7 +12,6 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pytest
 from mirrorlab.core import Session, ValidationError
@@ -63,7 +62,7 @@ def test_acquisition_streams_without_writing_and_recording_switches_the_file_on(
     with loop.subscribe("sensor", "angle") as live:
         loop.start_acquisition(["sensor"])
         next_blocks(live, 20)
-        assert "angle" not in loop.file["instruments/sensor"]  # acquiring wrote nothing
+        assert "angle" not in loop.members("instruments/sensor")  # acquiring wrote nothing
         thread = loop.instruments["sensor"]._thread
         loop.start_recording(["sensor"])
         assert loop.instruments["sensor"]._thread is thread  # the device was not restarted
@@ -73,7 +72,7 @@ def test_acquisition_streams_without_writing_and_recording_switches_the_file_on(
         assert loop.instruments["sensor"].state == "acquiring" and loop.acquiring  # acquisition goes on
         next_blocks(live, 5)
         assert stats["sensor/angle"]["samples"] >= 20 and stats["sensor/angle"]["dropped"] == 0
-        assert loop.file["instruments/sensor/angle/data"].shape[0] == stats["sensor/angle"]["samples"]
+        assert loop.node("instruments/sensor/angle/data").shape[0] == stats["sensor/angle"]["samples"]
         loop.stop_acquisition()
     assert live.closed and loop.instruments["sensor"].state == "stopped" and not loop.acquiring
 
@@ -86,23 +85,18 @@ def test_the_loop_records_setpoints_and_latency_of_each_command(loop: Session) -
         loop.stop_acquisition()  # the loop, then the instruments, then the recording: nothing sent goes unrecorded
     assert snap.controllers["loop"].state == "running" and snap.controllers["loop"].latency.count >= 50
     assert not loop.recording
-    g = loop.file["controllers/loop"]
-    assert g.attrs["plugin"] == "follow" and json_attr(g, "instruments") == {"output": "act"}
-    sent = g["output.target/data"][()]
-    angles = loop.file["instruments/sensor/angle/data"][()]
+    g = loop.read_group("controllers/loop")
+    assert loop.attributes("controllers/loop")["plugin"] == "follow"
+    assert loop.json_attribute("controllers/loop", "instruments") == {"output": "act"}
+    sent = g["output.target/data"]
+    angles = loop.read("instruments/sensor/angle/data")
     assert len(sent) >= 50 and g["latency/data"].shape == sent.shape
-    assert g["output.target"].attrs["unit"] == "rad" and g["latency"].attrs["unit"] == "s"
+    assert loop.stream("loop", "output.target").unit == "rad" and loop.stream("loop", "latency").unit == "s"
     # every set-point is exactly half of a recorded angle sample (θt = θv / 2)
     assert np.isin(sent, 0.5 * angles).all()
-    assert (g["latency/data"][()] > 0).all()
+    assert (g["latency/data"] > 0).all()
     # the actuator holds the last set-point it acknowledged (integer µrad on the wire)
     assert loop.instruments["act"].query("TGT?").field(0, "µrad", int) == round(sent[-1] * 1e6)
-
-
-def json_attr(g: h5py.Group, name: str) -> object:
-    import json
-
-    return json.loads(g.attrs[name])
 
 
 class Breaks(Controller):
@@ -211,7 +205,7 @@ def test_a_second_recording_reports_only_its_own_drops(loop: Session) -> None:
         second = loop.stop_recording()
     assert first["sensor/angle"]["dropped"] > 0
     assert second["sensor/angle"]["dropped"] == 0 and second["sensor/angle"]["samples"] >= 10
-    assert loop.file["instruments/sensor/angle"].attrs["dropped"] == 0
+    assert loop.attributes("instruments/sensor/angle")["dropped"] == 0
     assert loop.snapshot().instruments["sensor"].dropped == 0
 
 
@@ -273,7 +267,7 @@ def test_controller_bindings_are_checked_when_added(tmp_path: Path) -> None:
         assert "controllers.c.inputs.input: 'sensor/nothing' is no stream of this session; sensor has: angle" in text
         assert "controllers.c.instruments.output: actuator 'act' has no live-settable speed" in text
         assert "controllers.c.instruments.extra: follow commands no 'extra'" in text
-        assert not s.controllers and "controllers/c" not in s.file
+        assert not s.controllers and not s.exists("controllers/c")
 
 
 class Bursts(Controller):
@@ -312,9 +306,9 @@ def test_send_keeps_the_newest_setpoint_and_records_what_was_acknowledged(tmp_pa
         snap = s.snapshot().controllers["c"]
         s.stop_acquisition()
         given = runner.controller.given
-        sent = s.file["controllers/c/output.target/data"][()]
+        sent = s.read("controllers/c/output.target/data")
         assert snap.superseded_commands > 0 and snap.failed_commands == 0, snap
-        assert len(sent) == snap.commands and s.file["controllers/c/latency/data"].shape == sent.shape
+        assert len(sent) == snap.commands and s.node("controllers/c/latency/data").shape == sent.shape
         # what reached the actuator is the given values in order, some skipped, the last one always
         positions = [int(np.argmin(np.abs(np.asarray(given) - v))) for v in sent]
         # the floats as given, stored: exact but for rounding
