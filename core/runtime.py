@@ -138,6 +138,38 @@ class DeviceRuntime:
                                                              f" on {instrument.port}" if instrument.port else ""))
             return instrument
 
+    def _instrument(self, label: str) -> Instrument:
+        try:
+            return self.instruments[label]
+        except KeyError:
+            raise SessionError(f"no instrument {label!r} in this session; its instruments: "
+                               f"{', '.join(self.instruments) or 'none'}") from None
+
+    def disconnect_instrument(self, label: str) -> None:
+        """Stop instrument ``label`` (the controllers bound to it first) and release its device; the
+        others go on. Refused while a recording includes it. :meth:`connect_instrument` undoes it."""
+        with self.lock:
+            inst = self._instrument(label)
+            if self.store.recorder is not None and label in self._recording:
+                raise SessionError(f"{label} is being recorded; stop the recording before disconnecting it")
+            self.stop_acquisition([label])
+            inst.close()
+            inst.set_state("stopped", f"{inst.device_name} disconnected by the operator")
+
+    def connect_instrument(self, label: str) -> None:
+        """Connect instrument ``label`` again (after :meth:`disconnect_instrument`): open, identify,
+        apply its settings. If that fails it is left closed (``stopped``) and the error raised."""
+        with self.lock:
+            inst = self._instrument(label)
+            inst.set_state("connecting")
+            try:
+                inst.reconnect()
+            except BaseException:
+                inst.close()
+                inst.set_state("stopped", f"{inst.device_name} did not connect")
+                raise
+            inst.set_state("idle", f"{inst.device_name} connected")
+
     def set_world(self, settings: Mapping[str, Any]) -> SimulatedWorld:
         """Give this session one simulated world, shared by the simulators added after this call.
 

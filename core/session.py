@@ -23,7 +23,8 @@ each algorithm run into a new ``/results/<algorithm>/<run-id>`` group that is ne
 :class:`Session` is a facade over three parts, each with one job (their methods document the parameters):
 
 * :class:`~mirrorlab.core.runtime.DeviceRuntime` (``runtime.py``): instruments, simulators, the
-  simulated world, controllers, acquisition, recording, stop, snapshot; the session lock;
+  simulated world, controllers, acquisition, recording, connect / disconnect, stop, snapshot;
+  the session lock;
 * :class:`~mirrorlab.core.store.session_file.SessionFile` (``store/``): the file; result groups,
   provenance and ``/config``, SWMR switching, ``write_group``, ``/log``, and the read API
   (:class:`~mirrorlab.core.store.reader.Reader`: datasets, attributes, tree, results, truth,
@@ -172,6 +173,15 @@ class Session:
         (parameters: :meth:`DeviceRuntime.add_instrument <mirrorlab.core.runtime.DeviceRuntime.add_instrument>`)."""
         return self._runtime.add_instrument(label, plugin, port=port, settings=settings, simulate=simulate,
                                             simulator=simulator, timeout=timeout, reconnect=reconnect)
+
+    def disconnect_instrument(self, label: str) -> None:
+        """Stop instrument ``label`` (its controllers first) and release its device, under the session lock;
+        refused while it is recorded."""
+        self._runtime.disconnect_instrument(label)
+
+    def connect_instrument(self, label: str) -> None:
+        """Connect a disconnected instrument again (open, identify, apply its settings), under the session lock."""
+        self._runtime.connect_instrument(label)
 
     def set_world(self, settings: Mapping[str, Any]) -> SimulatedWorld:
         """Give this session one simulated world, shared by the simulators added after this call

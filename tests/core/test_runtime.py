@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mirrorlab.core import Session, ValidationError
+from mirrorlab.core import DeviceError, Session, SessionError, ValidationError
 from mirrorlab.core.controller_runtime import ControllerContext
 from mirrorlab.core.controllers import Controller
 from mirrorlab.core.events import Event
@@ -240,6 +240,52 @@ def test_an_unplugged_device_fails_after_its_reconnect_budget(tmp_path: Path) ->
         s.simulator("sensor").close()  # gone for good
         wait_for(lambda: sensor.state == "failed", "the budget to run out")
         assert len(events) == 1 and "did not come back within 0.5 s" in events[0].message
+
+
+def _in_thread(call: Callable[[], None]) -> tuple[threading.Thread, threading.Event]:
+    done = threading.Event()
+    worker = threading.Thread(target=lambda: (call(), done.set()))
+    worker.start()
+    return worker, done
+
+
+def test_disconnecting_and_connecting_an_instrument_take_the_session_lock(loop: Session) -> None:
+    sensor, act = loop.instruments["sensor"], loop.instruments["act"]
+    loop.start_acquisition()
+    wait_for(lambda: loop.controllers["loop"].running, "the loop to run")
+    with loop._runtime.lock:  # another thread changes the session's state meanwhile
+        worker, done = _in_thread(lambda: loop.disconnect_instrument("sensor"))
+        assert not done.wait(0.3) and sensor.state == "acquiring"  # it waits for the lock
+    assert done.wait(HANG), "disconnect_instrument hangs"
+    worker.join()
+    assert sensor.state == "stopped" and not loop.controllers["loop"].running  # its controller stopped with it
+    assert act.state == "acquiring" and loop.snapshot().instruments["sensor"].acquiring is False  # the others go on
+    with loop._runtime.lock:
+        worker, done = _in_thread(lambda: loop.connect_instrument("sensor"))
+        assert not done.wait(0.3) and sensor.state == "stopped"
+    assert done.wait(HANG), "connect_instrument hangs"
+    worker.join()
+    assert sensor.state == "idle"
+    with loop.subscribe("sensor", "angle") as live:
+        loop.start_acquisition(["sensor"])
+        next_blocks(live, 5)  # connected again: it streams
+
+
+def test_a_recorded_instrument_is_not_disconnected_and_a_failed_connect_leaves_it_stopped(loop: Session) -> None:
+    sensor = loop.instruments["sensor"]
+    loop.start_recording(["sensor"])
+    with pytest.raises(SessionError, match="sensor is being recorded; stop the recording before disconnecting it"):
+        loop.disconnect_instrument("sensor")
+    assert sensor.state == "acquiring" and loop.recording
+    loop.stop_recording()
+    with pytest.raises(SessionError, match="no instrument 'nope' in this session; its instruments: sensor, act"):
+        loop.disconnect_instrument("nope")
+    loop.disconnect_instrument("sensor")
+    loop.simulator("sensor").close()  # the device is gone: connecting fails
+    states = collect(loop, "state")
+    with pytest.raises(DeviceError):
+        loop.connect_instrument("sensor")
+    assert sensor.state == "stopped" and states[-1].message.endswith("did not connect")
 
 
 def test_a_folder_source_resumes_where_it_was_after_a_reconnect(tmp_path: Path) -> None:
