@@ -22,12 +22,12 @@ def test_the_mirror_follows_the_tracker_by_half_its_angle(tmp_path: Path) -> Non
             for _ in range(6):
                 assert latency.get(timeout=HANG) is not None, "no set-point acknowledged"
             s.stop_acquisition()
-        g = s.file["controllers/loop"]
-        directions = s.file["instruments/tracker/direction/data"][()]
-        sent_h, sent_v = g["mirror.h_angle/data"][()], g["mirror.v_angle/data"][()]
+        g = s.read_group("controllers/loop")
+        directions = s.read("instruments/tracker/direction/data")
+        sent_h, sent_v = g["mirror.h_angle/data"], g["mirror.v_angle/data"]
         assert len(g["latency/data"]) == len(sent_h) + len(sent_v) >= 6  # one latency per command, both axes
         seen = directions[directions[:, 3] == 0]  # samples not flagged lost
         assert np.isin(sent_h, 0.5 * seen[:, 0]).all()
         assert np.isin(sent_v, 0.5 * seen[:, 1] + math.radians(1.0)).all()
-        assert s.file["controllers/loop/mirror.h_angle"].attrs["unit"] == "rad"
+        assert s.attributes("controllers/loop/mirror.h_angle")["unit"] == "rad"
         assert s.snapshot().controllers["loop"].failed_commands == 0

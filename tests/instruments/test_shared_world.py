@@ -35,12 +35,12 @@ def test_two_trackers_share_one_world_and_its_truth_is_recorded(tmp_path) -> Non
         s.record(2.5)
         marks = s.stream("fixed", "mark")
         gimbal = s.stream("mirror", "h")
-        f = s.file
-        assert "/truth/world" in f and f["truth/world"].attrs["kind"] == "ground truth (shared tracking world)"
-        truth = {name: (f[f"truth/world/{name}/time"][:], f[f"truth/world/{name}/data"][:])
+        assert s.exists("/truth/world") and s.attributes("truth/world")["kind"] == "ground truth (shared tracking world)"
+        stored = s.truth("world")
+        truth = {name: (stored[f"{name}/time"], stored[f"{name}/data"])
                  for name in ("target", "target_angles", "mirror_angles", "mirror_normal", "in_mirror")}
-        assert f["truth/world/target"].attrs["unit"] == "mm"
-        assert f["truth/world/in_mirror"].attrs["description"].startswith("the target's image")
+        assert s.attributes("truth/world/target")["unit"] == "mm"
+        assert s.attributes("truth/world/in_mirror")["description"].startswith("the target's image")
     t, target = truth["target"]
     # camera frames: differences of session stamps of a few s, good to eps |t| over 1/24 s
     assert np.all(np.diff(t) == pytest.approx(1 / 24.0, rel=roundoff(cond=24 * np.abs(t).max(), ops=2)))

@@ -67,7 +67,7 @@ def test_every_templated_algorithm_stores_resolved_units(tmp_path: Path) -> None
             from_arrays = s.run(cls, arrays, input_units=units)
             for ref in (from_datasets, from_arrays):
                 assert ref.status == "ok", ref.error
-                stored = {k: v.attrs["unit"] for k, v in s.file[ref.path].items()}
+                stored = {k: s.attributes(f"{ref.path}/{k}")["unit"] for k in s.members(ref.path)}
                 for port in cls.outputs:
                     expect = PLACEHOLDER.sub(lambda m, units=units: units[m[1]], port.unit)
                     assert stored[port.name] == expect and "{" not in expect, (name, port.name, stored[port.name])
@@ -121,4 +121,4 @@ def test_a_stream_in_another_unit_gets_that_unit(tmp_path: Path, unit: str) -> N
     data = _series()
     with Session.create(tmp_path / "s.h5") as s:
         ref = s.run("derivatives", data, input_units={"values": unit, "time": "s"})
-        assert s.file[ref.path]["acceleration"].attrs["unit"] == f"{unit}/s²"
+        assert s.attributes(f"{ref.path}/acceleration")["unit"] == f"{unit}/s²"

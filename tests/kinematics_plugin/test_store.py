@@ -39,10 +39,10 @@ def test_import_read_export_round_trip(tmp_path: Path):
             import_markers(s, src)
         import_markers(s, SHARED_DATA / "mocap" / "markers.trc", name="trc")
     with Session.open(path) as s:
-        assert marker_names(s.file) == ["recon", "trc"]
-        back = read_markers(s.file, "recon")
-        attrs = dict(s.file["markers/recon"].attrs)
-        trc = read_markers(s.file, "/markers/trc")
+        assert marker_names(s) == ["recon", "trc"]
+        back = read_markers(s, "recon")
+        attrs = s.attributes("markers/recon")
+        trc = read_markers(s, "/markers/trc")
     assert back.labels == ["a", "b", "c"] and back.rate == 60.0
     assert abs_err(back.points, pts) <= F32 * np.nanmax(np.abs(pts))            # float32 C3D storage
     assert attrs["source_sha256"] == sha256_file(src) and attrs["source_format"] == "c3d"
@@ -76,7 +76,7 @@ def test_import_markers_recipe_step(tmp_path: Path):
         'parameters = { method = "smoothing_spline", lam = 0.0 }\n')
     out = run_recipe(load_recipe(recipe), tmp_path / "r.h5")
     with Session.open(out) as s:
-        assert read_markers(s.file, "walk").labels == ["p", "q", "r"]
+        assert read_markers(s, "walk").labels == ["p", "q", "r"]
         (ref,) = s.results("derivatives")
         assert ref.status == "ok"
         # points advance 9 mm per frame: a line, which the interpolating spline (lam = 0) reproduces

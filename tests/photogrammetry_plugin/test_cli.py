@@ -59,10 +59,10 @@ def test_calibrate_real_chessboard_photos(tmp_path: Path) -> None:
     assert K[0, 0] == pytest.approx(1329.34, rel=0.01) and K[1, 1] == pytest.approx(1329.34, rel=0.01)
     assert doc["rms"] <= 0.5 and doc["model"] == "pinhole" and len(doc["found"]) == 29
     with Session.open(session) as s:
-        g = s.file["calibration/cam"]
-        assert g.attrs["result"] == "/results/calibrate_pinhole/run-0001" and g.attrs["model"] == "pinhole"
+        g, attrs = s.read_group("calibration/cam"), s.attributes("calibration/cam")
+        assert attrs["result"] == "/results/calibrate_pinhole/run-0001" and attrs["model"] == "pinhole"
         assert g["image_points"].shape == (29, 70, 2)
-        np.testing.assert_array_equal(g["camera_matrix"][()], K)  # JSON writes repr(float): exact
+        np.testing.assert_array_equal(g["camera_matrix"], K)  # JSON writes repr(float): exact
 
 
 def test_calibrate_points_then_reconstruct_mirror_csv(tmp_path: Path) -> None:

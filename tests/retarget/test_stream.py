@@ -69,10 +69,10 @@ def test_csv_and_session_sinks(tmp_path) -> None:
     rows = list(csv.reader(path.open()))
     assert rows[0][:3] == ["frame", "time_s", "q0_rad"] and len(rows) == 21
     with Session.open(tmp_path / "s.h5") as s:
-        g = s.file["results/retarget_stream/run-0001"]
-        assert g["q"].shape == (20, 4) and g.attrs["method"] == "lm"
+        run = "results/retarget_stream/run-0001"
+        assert s.node(f"{run}/q").shape == (20, 4) and s.attributes(run)["method"] == "lm"
         # the CSV prints q with 10 significant digits (half a unit: 5e-10 relative), parsed back exactly
-        q = g["q"][:, 0]
+        q = s.read(f"{run}/q")[:, 0]
         assert (np.abs(q - [float(r[2]) for r in rows[1:]]) <= (5e-10 + EPS) * np.abs(q)).all()
 
 

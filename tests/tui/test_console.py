@@ -66,7 +66,7 @@ async def test_preview_record_stop_and_quit_close_the_file(loop_console: Console
     with Session.open(session.path) as s:
         assert s.status == "closed"
         times, angle = s.stream("sensor", "angle")
-        assert len(angle) > 50 and s.file["instruments/sensor/angle"].attrs["dropped"] == 0
+        assert len(angle) > 50 and s.attributes("instruments/sensor/angle")["dropped"] == 0
         assert len(s.stream("loop", "latency").data) > 0  # the controller ran and was recorded
 
 

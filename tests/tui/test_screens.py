@@ -37,8 +37,8 @@ def make_recording(path: Path, registry: Registry | None = None) -> Path:
         s.record(instruments=["cam"])  # until the camera's film ends
         s.record(0.3, instruments=["sensor"])
         t = np.arange(50) / 50.0
-        s.write_group("markers/walk", {"time": t, "xyz": np.stack([np.stack([100 * t, 50 * t ** 2, 0 * t], -1)] * 2, 1)})
-        s.file["markers/walk/xyz"].attrs["unit"] = "mm"
+        s.write_group("markers/walk", {"time": t, "xyz": np.stack([np.stack([100 * t, 50 * t ** 2, 0 * t], -1)] * 2, 1)},
+                      {"unit": "mm", "time_unit": "s"})  # as a marker set: the units on its group
         s.run("derivatives", {"time": "/markers/walk/time", "values": "/markers/walk/xyz"})
         times, _ = s.stream("sensor", "angle")
         s.run("derivatives", {"time": "/instruments/sensor/angle/time", "values": "/instruments/sensor/angle/data"})

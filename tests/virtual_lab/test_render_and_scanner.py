@@ -103,12 +103,12 @@ def test_virtual_source_records_frames_and_truth(tmp_path: Path) -> None:
         s.record(0.6)                               # the recording_stopped hook writes /truth/cam
         times, frames = s.stream("cam", "frames")
         index = s.stream("cam", "frame_index").data
-        g = s.file["truth/cam/markers"]
-        assert g["frame_index"][:].tolist() == index.tolist() == list(range(6))
-        real = g["real_xy"][:]
-        assert real.shape == (6, 2, 2) and g["virtual_xy"].shape == (6, 1, 2, 2)
-        np.testing.assert_allclose(g["time"][:], index / 50.0, rtol=0, atol=roundoff(scale=index.max() / 50.0, ops=2))
-        assert "instruments" not in g.name and s.file["truth/cam/analytic/phi"].shape == (6,)
+        truth = s.truth("cam")
+        assert truth["markers/frame_index"].tolist() == index.tolist() == list(range(6))
+        real = truth["markers/real_xy"]
+        assert real.shape == (6, 2, 2) and truth["markers/virtual_xy"].shape == (6, 1, 2, 2)
+        np.testing.assert_allclose(truth["markers/time"], index / 50.0, rtol=0, atol=roundoff(scale=index.max() / 50.0, ops=2))
+        assert truth["analytic/phi"].shape == (6,)
         # each true direct image (1024 x 768 render -> 512 x 384 scan, central 344 lines) is bright:
         # markers at grey 235 on 12, their centre pixel stays far above 150 after the 2x reduction
         top = (384 - 344) // 2
