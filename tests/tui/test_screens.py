@@ -323,6 +323,8 @@ async def test_demo_flow_record_then_reconstruct_then_plots(tmp_path: Path) -> N
                 await pilot.press("r")
             await until(pilot, lambda: not session.recording, "the recording stopped")
             await pilot.press("a")
+            await until(pilot, lambda: isinstance(app.screen, AnalysisScreen) and bool(app.screen.query("#algorithms")),
+                        "the analysis screen is shown")
             screen = app.screen
             options = screen.query_one("#algorithms", OptionList)
             await until(pilot, lambda: "recipe:rssr_analysis.toml" in [o.id for o in options.options], "the recipes")
