@@ -158,7 +158,7 @@ def test_docstring_examples_run():
 
     import mirrorlab.instruments.virtual_lab.box_flight as lab
 
-    from tests.kinematics_experiments import box_flight as chain
+    from tests.plugins.kinematics.experiments import box_flight as chain
 
     results = [doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE) for module in (lab, chain)]
     assert sum(r.attempted for r in results) >= 5 and not any(r.failed for r in results)
