@@ -109,6 +109,7 @@ class FilmScannerModel(SeededNoise, LineSimulator):
         return flags
 
     def cmd_STAT_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "STAT?")
         yield f"OK {self.state} {','.join(sorted(self._flags())) or '-'}"
 
     def fault_names(self) -> tuple[str, ...]:
@@ -352,11 +353,11 @@ class FilmScannerModel(SeededNoise, LineSimulator):
         c = self.carrier
         out = [f"POS {c.film_um / 1000:.5f} {c.carrier_um / 1000:.5f} {c.pointer} {c.film_steps} {c.clamp}"]
         out += [f"FRAME {k} {self.film.frame_top_mm(k):.4f}" for k in range(self.film.n_frames)]
-        out += [f"MARKER {m.frame} {m.ident} {m.x_mm:.5f} {m.y_mm:.5f} {m.col_px:.3f} {m.row_px:.3f} "
+        out += [f"MARKER {m.frame} {m.ident} {self.fixed(m.x_mm, 5)} {self.fixed(m.y_mm, 5)} {m.col_px:.3f} {m.row_px:.3f} "
                 f"{m.radius_mm:.4f}" for m in self.film.markers]
         n = len(self.last_scan)
         ys = " ".join(f"{y:.5f}" for y, _ in self.last_scan) or "-"
-        dxs = " ".join(f"{dx:.5f}" for _, dx in self.last_scan) or "-"
+        dxs = " ".join(self.fixed(dx, 5) for _, dx in self.last_scan) or "-"
         out += [f"SCAN {n} {ys}", f"SCANDX {n} {dxs}"]
         out += self.fault_lines()
         return out

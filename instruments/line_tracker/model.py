@@ -84,8 +84,9 @@ class LineTrackerModel(ScannedLines, LineSimulator):
 
     # -- simulation --------------------------------------------------------------------------------
     def handle(self, line: str) -> Lines:
-        words = line.split()
-        if words and hasattr(self.detector, self.handler_name(words[0])):
+        words = self.words(line)
+        name = self.handler_name(words[0]) if words else ""
+        if name and hasattr(self.detector, name):
             return self.detector.handle(words)
         return super().handle(line)
 
@@ -129,5 +130,5 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         half = math.asin(min(1.0, self.world.spheres[0].radius / float(np.linalg.norm(v))))
         size = (math.tan(float(along) + half) - math.tan(float(along) - half)) * FOCAL_MM / PITCH_MM
         return [f"TIME {int(self.clock_ms)}",
-                f"TARGET {math.degrees(float(along)):.4f} {float(angle_to_pixel(along)):.3f}",
+                f"TARGET {self.fixed(math.degrees(float(along)), 4)} {float(angle_to_pixel(along)):.3f}",
                 f"SIZE {size:.2f}", *self.fault_lines()]
