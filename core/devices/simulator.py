@@ -537,11 +537,11 @@ class SimulatorServer:
 
     def _next_command(self, timeout: float) -> str | _Input | None:
         """The next command line (or ABORT byte, or too long a line), waiting up to ``timeout`` s; ``None`` if none."""
+        if self.endpoint.backlog > REPLY_BACKLOG:   # the client does not read its replies: the device waits
+            self._stop.wait(timeout)
+            return None
         command = self._take_command()
         if command is None:
-            if self.endpoint.backlog > REPLY_BACKLOG:   # the client does not read: neither does the device
-                self._stop.wait(timeout)
-                return None
             self._read(timeout)
             command = self._take_command()
         return command

@@ -112,6 +112,7 @@ class TransportFaults:
 BUSY_LINE = b"ERR E10 busy: another client is connected; try again when it has disconnected\n"
 #: How often, s, a pty endpoint with no program on it looks for one (a hung-up pty cannot be waited on).
 PTY_LOOK_S = 0.01
+TCP_ESTABLISHED = 1   # tcpi_state of a connection neither end has closed (linux/tcp_states.h)
 
 
 class Endpoint(ABC):
@@ -403,7 +404,7 @@ class TcpEndpoint(Endpoint):
         data = b""
         with self._fd_lock:
             generation, conn = self.generation, self._conn
-            watched = [self._server, self._interrupt_r, *([conn] if conn is not None else [])]
+            watched: list[socket.socket | int] = [self._server, self._interrupt_r, *([conn] if conn is not None else [])]
             try:
                 ready, _, _ = select.select(watched, [], [], timeout)
             except (OSError, ValueError):   # closed meanwhile
@@ -483,8 +484,10 @@ class TcpEndpoint(Endpoint):
 
 
 def _alive(conn: socket.socket) -> bool:
-    """Whether the peer of ``conn`` is still there (it has not closed its end)."""
+    """Whether the peer of ``conn`` is still there: it has not closed its end, even with bytes of it unread."""
     try:
+        if hasattr(socket, "TCP_INFO"):   # Linux: the connection's state, whatever waits in it
+            return conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, 1)[0] == TCP_ESTABLISHED
         return conn.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) != b""
     except BlockingIOError:
         return True

@@ -40,6 +40,7 @@ LOST_CYCLES = 3
 KH_DEFAULT = 200.0               # step law h = min(h0, Kh / S): counts x deg; calibrated (see experiments)
 PSI_QUANTUM = math.radians(1.44)   # 0.1 us of the 10 MHz counter chain at 40 kHz
 PSI_STEPS = 62                     # quanta in the 0...90 deg of PSI: 89.28 deg at most
+TEMP_RANGE = (-50, 100)          # SIM:FAULT TEMP, degC: air the tracker can work in
 REVERB_S = (9.7e-3, 13.1e-3, 16.9e-3, 22.3e-3, 27.8e-3)   # room echoes for LEFTOVER, s
 
 
@@ -165,6 +166,8 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
                     raise CommandError("E03", "SERVOGAIN axis must be 1 or 2")
                 if what in ("range_mm", "amp", "decay_ms", "sigma", "factor", "m_per_s", "gain") and value < 0:
                     raise CommandError("E03", f"{name} {what} must not be negative")
+                if what == "celsius" and not TEMP_RANGE[0] <= value <= TEMP_RANGE[1]:
+                    raise CommandError("E03", f"TEMP {text} outside {TEMP_RANGE[0]}..{TEMP_RANGE[1]} degC (air)")
             if name == "SERVOGAIN":
                 self.faults[f"SERVOGAIN {int(args[1])}"] = args[2:]
                 yield "OK"
@@ -216,6 +219,8 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         for k, sphere in enumerate(self.world.spheres):
             v = self.frame @ (sphere.path.position(t) - self.mount)
             r = float(np.linalg.norm(v))
+            if r <= sphere.radius:
+                continue   # a sphere that reaches the array has no direction to echo from
             amp = sphere.radius / TARGET_RADIUS
             if k == 0 and flat:                      # a flat target echoes only near specular geometry
                 az, el = math.radians(float(flat[0])), math.radians(float(flat[1]))
@@ -232,7 +237,7 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
             dirs.append(np.array([math.cos(e) * math.cos(a), math.sin(e), -math.cos(e) * math.sin(a)]))
             ranges.append(r)
             amps.append(amp)
-        return np.array(dirs), np.array(ranges), np.array(amps)
+        return np.array(dirs).reshape(-1, 3), np.array(ranges), np.array(amps)
 
     def _emission(self, t: float, beam: str, period: float) -> tuple[np.ndarray, np.ndarray]:
         """Arrivals (s after emission) and counts heard in the window ``period`` after an emission at ``t``."""
@@ -459,7 +464,7 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         v = self.frame @ (self.world.target_position(t) - self.mount)
         u0 = np.array([math.cos(self.theta[0]) * math.cos(self.theta[1]), math.sin(self.theta[1]),
                        -math.sin(self.theta[0]) * math.cos(self.theta[1])])
-        error = math.degrees(math.acos(float(np.clip(np.dot(u0, v / np.linalg.norm(v)), -1, 1))))
+        error = math.degrees(math.acos(float(np.clip(np.dot(u0, v / max(float(np.linalg.norm(v)), 1e-9)), -1, 1))))
         th = np.degrees(self.theta)
         return [f"TIME {int(self.clock_ms)}",
                 f"TARGET {self.fixed(math.degrees(t1), 4)} {self.fixed(math.degrees(t2), 4)} {np.linalg.norm(v):.1f}",

@@ -180,7 +180,8 @@ def detector_projection(world: TrackingWorld, t: float, axis: str, angle: float,
         along, across = (float(h), float(v)) if axis == "H" else (float(v), float(h))
         if abs(across) > FIELD_ACROSS / 2:
             continue
-        half = math.asin(min(1.0, sphere.radius / distance))
+        # a sphere that reaches the detector fills its field
+        half = math.pi / 2 if distance <= sphere.radius else math.asin(sphere.radius / distance)
         copies = [(along - angle, level)]
         if k == 0 and faults.twopeak is not None:
             sep, ratio = faults.twopeak

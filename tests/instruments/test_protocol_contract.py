@@ -1,0 +1,189 @@
+"""Every simulator against the line protocol its page documents, both ways: any input at all leaves it
+answering (served, in raw bytes), every command counts its arguments, integers and numbers are read as
+the pages name them, the pages list exactly the commands the simulators take, and no stream line
+follows the ``OK`` of ``STREAM OFF``."""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from collections.abc import Callable
+
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+from mirrorlab.core.devices import LineSimulator, SimulatorServer
+from mirrorlab.instruments.film_scanner.model import FilmScannerModel
+from mirrorlab.instruments.line_tracker.model import LineTrackerModel
+from mirrorlab.instruments.mirror_gimbal.model import MirrorGimbalModel
+from mirrorlab.instruments.reference import ChainSource
+from mirrorlab.instruments.reference.models import ActuatorModel, AngleSourceModel
+from mirrorlab.instruments.ultrasonic_tracker.acoustics import PITCH, wavenumber
+from mirrorlab.instruments.ultrasonic_tracker.model import UltrasonicTrackerModel
+from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
+
+from tests.raw_line import RawClient
+
+MODELS: dict[str, Callable[[], LineSimulator]] = {
+    "angle_source": AngleSourceModel,
+    "actuator": ActuatorModel,
+    "chain_source": lambda: ChainSource.make_simulator({}, 0),
+    "film_scanner": FilmScannerModel,
+    "ultrasonic_tracker": UltrasonicTrackerModel,
+    "line_tracker": LineTrackerModel,
+    "mirror_gimbal": MirrorGimbalModel,
+}
+PAGES = {"angle_source": "reference.md", "actuator": "reference.md", "chain_source": "reference.md",
+         "film_scanner": "film_scanner.md", "ultrasonic_tracker": "ultrasonic_tracker.md",
+         "line_tracker": "line_tracker.md", "mirror_gimbal": "mirror_gimbal.md"}
+
+COMMON = ["*IDN?", "PING", "*RST", "STAT?", "TIME?", "STREAM OFF", "ERR?", "ABORT", "SIM:SEED 3", "SIM:CLOCK FAST",
+          "SIM:FAULT CLEAR", "SIM:FAULT?", "SIM:TRUTH?"]
+DETECTOR = ["CLK 6500", "THR 128", "THR?", "FRAME?", "GREY?", "MARK?", "RUNS?", "AUTO ON 2 60", "SELECT WIDEST",
+            "STREAM OFF"]
+#: One well-formed use of every command of each simulator (the coverage test keeps it complete).
+VALID: dict[str, list[str]] = {
+    "angle_source": [*COMMON, "RATE 50", "WAVE 200000 0.5"],
+    "actuator": [*COMMON, "RATE 50", "SPEED 2000000", "TGT 1000", "TGT?", "HOLD", "POS?"],
+    "chain_source": [*COMMON, "RATE 50", "JOINTS?", "SEL shoulder elbow", "SEL?", "FRAMES?", "SEEK 3"],
+    "film_scanner": [*COMMON, "SIM:FAULT RAIL 5 25", "CLK 73000", "THR 128", "THR?", "HEADTHR 128 128 37",
+                     "CLAMP BASE", "HOME", "FEED 2", "STEP 10", "HEAD", "LINE?", "GREY?", "SCAN 2", "POS?"],
+    "ultrasonic_tracker": [*COMMON, "SIM:FAULT TEMP 20", "SIM:LOAD STILL 0 6 1300", "AIM 1 -2", "AIM?", "PSI 45",
+                           "BEAM A", "EMIT", "IDENT", "MEAS?", "STEP 2.5 200", "RAND 12 18", "TRACK OFF"],
+    "line_tracker": [*COMMON, "SIM:FAULT TWOPEAK 8 0.9", "SIM:LOAD STILL 0 3000", *DETECTOR],
+    "mirror_gimbal": [*COMMON, "SIM:FAULT BACKLASH H 0.5", "SIM:LOAD STILL 4 0 3000", "MODE H TRACK", "POS V 2.5",
+                      "ANG? H", "SENS? H", "GAIN H 1", "LIMIT H -30 30", "DEADBAND H 0",
+                      *(f"{axis}:{c}" for axis in "HV" for c in DETECTOR)],
+}
+VARIADIC = {"SEL"}   # SEL <joint> [<joint> ...]: one more argument is one more joint
+
+
+def command_word(handler: str) -> str:
+    """The command word of a handler name (``cmd_SIM_FAULT_Q`` -> ``SIM:FAULT?``, ``cmd_RST`` -> ``*RST``)."""
+    name = handler[len("cmd_"):]
+    word = name[:-2] + "?" if name.endswith("_Q") else name
+    return ("*" if handler in ("cmd_IDN_Q", "cmd_RST") else "") + word.replace("_", ":")
+
+
+def handled_words(model: LineSimulator) -> set[str]:
+    """Every command word the model takes (a detector's under its host's prefixes)."""
+    words = {command_word(n) for n in dir(model) if n.startswith("cmd_")}
+    detector = {command_word(n) for n in dir(OpticalDetector()) if n.startswith("cmd_")}
+    if isinstance(model, LineTrackerModel):
+        words |= detector
+    if isinstance(model, MirrorGimbalModel):
+        words |= {f"{axis}:{w}" for axis in "HV" for w in detector}
+    return words
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_the_table_of_valid_commands_covers_every_command(name: str) -> None:
+    assert {c.split()[0] for c in VALID[name]} == handled_words(MODELS[name]())
+
+
+@pytest.mark.parametrize(("name", "command"), [(n, c) for n, cs in VALID.items() for c in cs])
+def test_a_command_takes_its_documented_arguments_and_not_one_more(name: str, command: str) -> None:
+    model = MODELS[name]()
+    model.fast = True
+    reply = model.execute(command)[-1]
+    assert not reply.startswith(("ERR E01", "ERR E02")), (command, reply)
+    if command.split()[0] not in VARIADIC:
+        assert model.execute(command + " x")[-1].startswith("ERR E02 "), command
+
+
+# -- served: any bytes, and the end of a stream -------------------------------------------------------------
+NUMBERS = ["0", "-1", "1.5", "1e9", "-0", "nan", "inf", "99999999999999999999", "0x10", "1_000", "+7", ".", "1e6",
+           "-1e6", "90", "-40", "344"]
+WORDS = sorted({w for commands in VALID.values() for c in commands for w in c.split()} - {"SIM:CLOCK"})  # FAST stays
+TOKEN = st.one_of(st.sampled_from(NUMBERS + WORDS).map(str.encode), st.binary(max_size=4))
+
+
+@st.composite
+def mistaken(draw: st.DrawFn) -> bytes:
+    """A documented command with arguments replaced, and some added: what a client may get wrong."""
+    words = draw(st.sampled_from([c for commands in VALID.values() for c in commands])).split()
+    args = [draw(st.one_of(st.just(a.encode()), TOKEN)) for a in words[1:]]
+    return b" ".join([words[0].encode(), *args, *draw(st.lists(TOKEN, max_size=2))])
+
+
+INPUT = st.one_of(st.binary(max_size=400), st.lists(st.one_of(mistaken(), st.binary(max_size=20)), max_size=5)
+                  .map(b"\n".join))
+MARK = b"NOSUCH4711"   # the line after the input: its error marks where the input's replies end
+TERMINAL = re.compile(r"OK( .*)?|ERR E\d\d .*")
+REPLY_LINE = re.compile(r"OK( .*)?|ERR E\d\d .*|![A-Z].*|[A-Z][A-Z0-9:]* .*")
+
+
+@settings(max_examples=100, deadline=None)
+@given(data=INPUT)
+@example(data=b"\xff")
+@example(data=b"PING\xff")
+@example(data="PÏNG".encode())
+@example(data=b"PIN")
+@example(data=b"WAVE 1")
+@example(data=b"TGT")
+@example(data=b"SPEED")
+@example(data=b"RATE 5")
+@example(data=b"SIM:LOAD STILL 0 0\nSIM:LOAD STILL 0 0 0\nSIM:TRUTH?\nEMIT")
+@example(data=b"SIM:FAULT TEMP -1000\nPSI 45")
+@example(data=b"\x18\x18PI\x18")
+@example(data=b"X" * 5000)
+@pytest.mark.parametrize("name", MODELS)
+def test_any_bytes_leave_the_simulator_answering_ping(name: str, data: bytes) -> None:
+    """Whatever comes first, PING then answers ``OK PONG``: every line before it is printable ASCII of the
+    protocol's shapes, at most one terminal line per line sent (or abort byte), never an internal error."""
+    model = MODELS[name]()
+    model.fast = True
+    with SimulatorServer(model, "tcp") as server, RawClient(server.url) as c:
+        c.send(data + b"\n" + MARK + b"\nPING\n")
+        lines = []
+        while (line := c.line()) != f"ERR E01 unknown command {MARK.decode()}":
+            lines.append(line)
+        assert c.reply() == ["OK PONG"]
+        time.sleep(0.01)   # the clock runs on: what the input set up is simulated for a while
+        assert c.ask("PING") == ["OK PONG"]
+    assert all(REPLY_LINE.fullmatch(line) for line in lines), lines
+    terminal = [line for line in lines if TERMINAL.fullmatch(line)]
+    assert len(terminal) <= data.count(b"\n") + data.count(b"\x18") + 1, terminal
+    assert not any(line.startswith(("ERR E99", "!ERR E99")) for line in lines), lines
+
+
+STREAMS = {"angle_source": ["RATE 200", "STREAM ON"], "actuator": ["RATE 200", "STREAM ON"],
+           "chain_source": ["RATE 200", "STREAM ON"], "ultrasonic_tracker": ["STREAM ON", "TRACK ON"],
+           "line_tracker": ["STREAM ON"], "mirror_gimbal": ["STREAM ON", "H:STREAM ON"]}
+
+
+@pytest.mark.parametrize("name", STREAMS)
+def test_no_stream_line_follows_the_ok_of_stream_off(name: str) -> None:
+    with SimulatorServer(MODELS[name](), "tcp") as server, RawClient(server.url) as c:
+        for command in STREAMS[name]:
+            assert c.ask(command)[0].startswith("OK")
+        seen = 0
+        while seen < 3:
+            seen += c.line().startswith("!")
+        c.send(b"STREAM OFF\n" + (b"H:STREAM OFF\n" if name == "mirror_gimbal" else b""))
+        for _ in range(2 if name == "mirror_gimbal" else 1):
+            while (line := c.line()) != "OK":
+                assert line.startswith("!"), line
+        after = b""
+        end = time.monotonic() + 0.4      # longer than a search cycle (80 ms) or a scan (78.8 ms)
+        while time.monotonic() < end:
+            after += c.read_some(0.05)
+    assert [line for line in after.decode().splitlines() if not line.startswith("!ERR ")] == []
+
+
+def test_the_ultrasonic_steering_phase_stays_within_its_documented_range() -> None:
+    """PSI 0...90, quantised to 1.44 deg: 90 gives the last quantum inside the range, 89.28 deg."""
+    model = UltrasonicTrackerModel()
+    # delta = arcsin(2 psi / (sqrt(3) k d)) at the default 344 m/s, as the page gives it
+    delta = math.degrees(math.asin(2 * math.radians(62 * 1.44) / (math.sqrt(3) * wavenumber(20.6) * PITCH)))
+    assert model.execute("PSI 90") == [f"OK 89.28 {delta:.2f}"]
+    assert model.execute("PSI 45") == ["OK 44.64 7.45"]
+    assert model.execute("PSI 90.5")[0].startswith("ERR E03")
+
+
+def test_no_reply_field_is_a_negative_zero() -> None:
+    model = MirrorGimbalModel()
+    model.fast = True
+    assert model.execute("POS H -0.0004") == ["OK 0.000"]
+    assert model.execute("POS H -0.0006") == ["OK -0.001"]
