@@ -9,9 +9,9 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from mirrorlab.core.devices import CommandError, Lines, LineSimulator, SimulatorServer
+from mirrorlab.core.devices import CommandError, Delay, Lines, LineSimulator, SimulatorServer
 from mirrorlab.core.devices.simulator import MAX_LINE, REPLY_BACKLOG
-from mirrorlab.instruments.reference.models import ActuatorModel
+from mirrorlab.instruments.reference.models import ActuatorModel, AngleSourceModel
 
 from tests.raw_line import RawClient
 
@@ -256,3 +256,31 @@ def test_every_reply_line_the_simulator_sends_is_printable_ascii(start: int) -> 
         (line,) = c.ask(b"X" + sent)
     assert re.fullmatch(r"[ -~]*", line)
     assert line == "ERR E01 unknown command X" + "".join(chr(b) if 0x20 < b < 0x7f else f"\\x{b:02x}" for b in sent)
+
+
+class Napping(AngleSourceModel):
+    """An angle source with a command that takes modelled time: in FAST mode the clock jumps over it."""
+
+    def cmd_NAP(self, args: list[str]) -> Lines:
+        yield Delay(float(args[0]))
+        yield "OK"
+
+
+def test_stream_samples_a_fast_clock_jumps_over_are_announced_lost() -> None:
+    """At most 100 samples of a jump are sent; ``!OVF n`` counts the rest, exactly: the stamps on either side
+    of it are n + 1 periods apart."""
+    model = Napping()
+    model.fast = True
+    with SimulatorServer(model, "tcp") as server, RawClient(server.url) as c:
+        assert c.ask("RATE 100") == ["OK 100"]
+        c.send(b"STREAM ON\nNAP 10\n")
+        lines = []
+        while not (lines and lines[-1].startswith("!OVF ")):
+            lines.append(c.line())
+        after = [c.line() for _ in range(100)]
+        assert c.ask("STREAM OFF") == ["OK"]
+    before = [line for line in lines if line.startswith("!A ")][-1]
+    lost = int(lines[-1].split()[1])
+    assert lost >= 890
+    assert int(after[0].split()[1]) - int(before.split()[1]) == (lost + 1) * 10_000    # µs
+    assert all(line.startswith("!A ") for line in after)

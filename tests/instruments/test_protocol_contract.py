@@ -187,3 +187,14 @@ def test_no_reply_field_is_a_negative_zero() -> None:
     model.fast = True
     assert model.execute("POS H -0.0004") == ["OK 0.000"]
     assert model.execute("POS H -0.0006") == ["OK -0.001"]
+
+
+def test_samples_skipped_after_a_pause_are_counted_and_the_recording_plays_on() -> None:
+    """A chain source 10 s behind at 100 frames/s sends the last 100 samples; the 901 before them are counted
+    lost (the server says so in ``!OVF``) and their frames are skipped, not replayed later."""
+    model = ChainSource.make_simulator({}, 0)
+    assert model.execute("STREAM ON") == ["OK"]
+    model.advance(10.0)
+    lines = model.stream_lines()
+    assert len(lines) == 100 and model.lost_lines == 901
+    assert [int(line.split()[2]) for line in lines] == list(range(901, 1000)) + [0]   # a 1000-frame recording
