@@ -70,6 +70,11 @@ def printable(text: str) -> str:
                    for c in text)
 
 
+def _bound(value: float) -> str:
+    """A range bound as written in an ``E03`` reply: whole numbers in full (``3141593``, not ``3.14159e+06``)."""
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
+
+
 def fixed(value: float, decimals: int) -> str:
     """``value`` with ``decimals`` decimals, never ``-0.000``: a value that rounds to zero is written unsigned.
 
@@ -259,7 +264,7 @@ class LineSimulator:
             raise CommandError("E02", f"not a number: {text}")
         value = int(text) if integer else float(text)
         if not lo <= value <= hi:
-            raise CommandError("E03", f"{text} outside {lo:g}..{hi:g}")
+            raise CommandError("E03", f"{text} outside {_bound(lo)}..{_bound(hi)}")
         return value
 
     @staticmethod
