@@ -74,7 +74,7 @@ def main() -> None:
     result = asyncio.run(measure(session, args.presses))
     with Session.open(path) as s:
         info = s.describe()
-        dropped = sum(int(s.file[f"instruments/{label}/{name}"].attrs["dropped"])
+        dropped = sum(int(s.attributes(f"instruments/{label}/{name}")["dropped"])
                       for label, inst in info["instruments"].items() for name in inst["streams"])
         cam_frames = info["instruments"]["cam"]["streams"]["frames"]["samples"]
     print(f"key press -> screen changed, ms ({SENSORS} angle sources at 50 Hz + a 30 frames/s 344x512 camera); "

@@ -14,6 +14,10 @@ its helpers, ``execute`` (run an algorithm without a session), the CLI helpers o
 
 Names other than the errors are imported on first use (PEP 562), so that light entry points such
 as ``mirrorlab --version`` (``mirrorlab.core.cli``) do not pay for numpy and h5py.
+
+A session's file is read through the ``Session`` read API (``read``, ``attributes``, ``tree``,
+``stream``, ``results``...; its ``Node``, ``StreamData`` and ``ResultData``), never through h5py;
+``is_hdf5`` says whether a file is HDF5 at all.
 """
 
 from __future__ import annotations
@@ -58,9 +62,10 @@ if TYPE_CHECKING:
     from .hookspecs import hookimpl
     from .params import Parameter, ParameterSet
     from .registry import Registry, get_registry
-    from .session import ResultData, Session
+    from .session import Node, ResultData, Session, StreamData
     from .steps import ALGORITHM_TABLES, AlgorithmStep, Step, algorithm_tables
     from .store import schema
+    from .store.files import is_hdf5
     from .streams import Block, StreamSpec
     from .tui.screens import ScreenEntry
 
@@ -68,6 +73,7 @@ if TYPE_CHECKING:
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
          "execute": "algorithms", "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params",
          "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
+         "StreamData": "session", "Node": "session", "is_hdf5": "store.files",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
          "algorithm_tables": "steps", "AlgorithmStep": "steps", "SessionClock": "clock", "EventBus": "events",
@@ -87,6 +93,7 @@ __all__ = [
     "StoppedOnRequest", "StreamSpec", "Subcommands", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
     "figures_folder", "progress_bar", "save_figure", "schema",
+    "Node", "StreamData", "is_hdf5",
 ]
 
 

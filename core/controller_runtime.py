@@ -22,7 +22,7 @@ import numpy as np
 
 from .controllers import Controller
 from .devices import Instrument
-from .errors import DeviceError, MirrorlabError
+from .errors import DeviceError, MirrorlabError, Problem
 from .streams import Emitter, StreamSpec, Subscription
 
 
@@ -322,3 +322,63 @@ class ControllerRunner:
             return None
         p50, p99 = np.percentile(values, [50, 99])
         return LatencyStats(int(values.size), float(p50), float(p99), float(values.max()))
+
+
+def bind(controller: Controller, where: str, inputs: Mapping[str, str], instruments: Mapping[str, str],
+         available: Mapping[str, Instrument]) -> tuple[dict[str, tuple[str, str]], dict[str, Instrument], list[Problem]]:
+    """Check a controller's bindings against its declared roles and the session's instruments.
+
+    Parameters
+    ----------
+    controller
+        The controller, its settings validated.
+    where
+        Key prefix of the problems (``controllers.<label>``).
+    inputs, instruments
+        Input role -> ``"<instrument>/<stream>"``; commanded role -> instrument label.
+    available
+        The session's instruments by label.
+
+    Returns the bound inputs (role -> ``(label, stream)``), the bound instruments (role ->
+    instrument) and every problem found.
+    """
+    cls = type(controller)
+    commanded = controller.commanded()
+    problems: list[Problem] = []
+    bound_inputs: dict[str, tuple[str, str]] = {}
+    bound_instruments: dict[str, Instrument] = {}
+    for role in set(inputs) - set(cls.inputs):
+        problems.append(Problem(f"{where}.inputs.{role}", f"{cls.name} has no input {role!r}; "
+                                f"its inputs: {', '.join(cls.inputs) or 'none'}"))
+    for role, what in cls.inputs.items():
+        ref = inputs.get(role)
+        if ref is None:
+            problems.append(Problem(f"{where}.inputs.{role}", f"required: \"<instrument>/<stream>\" ({what})"))
+            continue
+        label, _, stream = str(ref).partition("/")
+        inst = available.get(label)
+        streams = [s.name for s in inst.streams()] if inst is not None else []
+        if inst is None or stream not in streams:
+            problems.append(Problem(f"{where}.inputs.{role}", f"{ref!r} is no stream of this session; " + (
+                f"{label} has: {', '.join(streams)}" if inst is not None else
+                f"instruments: {', '.join(available) or 'none'}")))
+            continue
+        bound_inputs[role] = (label, stream)
+    for role in set(instruments) - set(commanded):
+        problems.append(Problem(f"{where}.instruments.{role}", f"{cls.name} commands no {role!r}; "
+                                f"it commands: {', '.join(commanded) or 'nothing'}"))
+    for role, names in commanded.items():
+        chosen = instruments.get(role)
+        inst = available.get(str(chosen))
+        if inst is None:
+            problems.append(Problem(f"{where}.instruments.{role}", f"required: the label of an instrument "
+                                    f"of this session ({', '.join(available) or 'none'})"
+                                    + (f"; {chosen!r} is not one" if chosen is not None else "")))
+            continue
+        not_live = [n for n in names if n not in inst.parameters or not inst.parameters[n].live]
+        if not_live:
+            problems.append(Problem(f"{where}.instruments.{role}", f"{inst.name} {chosen!r} has no live-settable "
+                                    f"{', '.join(not_live)}, which {cls.name} sets"))
+            continue
+        bound_instruments[role] = inst
+    return bound_inputs, bound_instruments, problems

@@ -7,15 +7,16 @@ values alone; but the blocks can be hashed apart, by whichever process already h
 (the workers of a chunked run, :mod:`mirrorlab.core.batch.executors`), and combined in frame
 order. A 0-d array is one row; an empty array has no blocks.
 
-Pure functions; a :class:`h5py.Dataset` is read about :data:`READ_BYTES` at a time.
+Pure functions; a dataset of a session file (any array-like that is not a numpy array, such as a
+:class:`~mirrorlab.core.store.reader.StoredArray`) is read about :data:`READ_BYTES` at a time.
 """
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Iterable, Mapping
+from typing import Any
 
-import h5py
 import numpy as np
 
 __all__ = ["BLOCK_BYTES", "READ_BYTES", "block_rows", "block_digests", "combine", "array_digest", "input_entry",
@@ -63,13 +64,14 @@ def combine(digests: Iterable[bytes]) -> str:
     return hashlib.sha256(b"".join(digests)).hexdigest()
 
 
-def array_digest(array: np.ndarray | h5py.Dataset) -> str:
+def array_digest(array: np.ndarray | Any) -> str:
     """Hex digest of an array's values in C order (its dtype and shape are stored beside it).
 
     Parameters
     ----------
     array
-        Any array, or a dataset (read in whole blocks, about :data:`READ_BYTES` at a time).
+        Any array, or a dataset: an array-like with ``dtype``, ``shape``, ``ndim`` and slicing
+        (read in whole blocks, about :data:`READ_BYTES` at a time).
 
     Examples
     --------
@@ -80,7 +82,7 @@ def array_digest(array: np.ndarray | h5py.Dataset) -> str:
     True
     """
     per_block = block_rows(array.dtype, array.shape)
-    if not isinstance(array, h5py.Dataset) or array.ndim == 0:
+    if isinstance(array, np.ndarray) or array.ndim == 0:
         return combine(block_digests(np.asarray(array[()]), per_block))
     row = max(1, array.dtype.itemsize * int(np.prod(array.shape[1:], dtype=np.int64)))
     step = per_block * max(1, READ_BYTES // (row * per_block))
@@ -88,7 +90,7 @@ def array_digest(array: np.ndarray | h5py.Dataset) -> str:
                    for d in block_digests(array[start:start + step], per_block))
 
 
-def input_entry(array: np.ndarray | h5py.Dataset, digest: str | None = None) -> dict[str, object]:
+def input_entry(array: np.ndarray | Any, digest: str | None = None) -> dict[str, object]:
     """The ``@input_sha256`` entry of one input: its digest (computed unless given), block length,
     dtype and shape.
 
@@ -99,12 +101,12 @@ def input_entry(array: np.ndarray | h5py.Dataset, digest: str | None = None) -> 
             "dtype": array.dtype.str, "shape": list(array.shape)}
 
 
-def read_hashed(inputs: Mapping[str, np.ndarray | h5py.Dataset]) -> tuple[dict[str, np.ndarray], dict[str, dict[str, object]]]:
-    """Inputs with their datasets read whole, and each input's :func:`input_entry`.
+def read_hashed(inputs: Mapping[str, np.ndarray | Any]) -> tuple[dict[str, np.ndarray], dict[str, dict[str, object]]]:
+    """Inputs with their datasets (array-likes other than numpy's) read whole, and each input's :func:`input_entry`.
 
     >>> arrays, entries = read_hashed({"a": np.zeros(3)})
     >>> entries["a"]["shape"], arrays["a"].tolist()
     ([3], [0.0, 0.0, 0.0])
     """
-    arrays = {name: value[()] if isinstance(value, h5py.Dataset) else value for name, value in inputs.items()}
+    arrays = {name: value if isinstance(value, np.ndarray) else value[()] for name, value in inputs.items()}
     return arrays, {name: input_entry(a) for name, a in arrays.items()}

@@ -17,7 +17,7 @@ name it registers, every lifecycle hook it implements and every CLI command it a
 (``"algorithm.derivatives" = "<its entry point's module>"``, ``"screen.chain" = ...``,
 ``"hook.mirrorlab_recording_stopped" = ...``, ``"command.kinematics" = ...``). Such a plugin is
 imported only when one of its names, hooks or commands is asked for, so a command pays only for
-the plugins it runs (the built-in plugins all declare theirs; ``tests/core/test_cli_startup.py``
+the plugins it runs (the built-in plugins all declare theirs; ``tests/core/cli/test_cli_startup.py``
 checks that the declarations match). The one-line help of a declared command is an entry point of
 the group ``mirrorlab.commands`` (``kinematics = "<light module>:<attribute holding the help>"``), so
 ``mirrorlab --help`` lists it without importing the plugin. A plugin without declarations is

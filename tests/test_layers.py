@@ -70,6 +70,46 @@ def test_no_layer_names_a_forbidden_package_in_a_string(layer: str) -> None:
     assert stale == [], f"remove these allowances from tests/test_layers.py, they are no longer needed: {stale}"
 
 
+#: The one package that opens session files with h5py (import-linter's contract says so for imports).
+STORE = "core/store/"
+#: ``.file`` attributes of the layers that are not a session's file: ``(module, receiver)``, ``*`` any module.
+NOT_A_SESSION_FILE = {("*", "args"),  # the FILE argument of a command (argparse)
+                      ("core/errors.py", "self")}  # Problem.file: the file a problem is in
+
+
+def _file_uses(path: Path) -> list[tuple[int, str]]:
+    """(line, receiver) of every ``<receiver>.file`` and ``getattr(<receiver>, "file")`` in a module."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Attribute) and node.attr == "file":
+            found.append((node.lineno, ast.unparse(node.value)))
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+              and len(node.args) > 1 and isinstance(node.args[1], ast.Constant) and node.args[1].value == "file"):
+            found.append((node.lineno, ast.unparse(node.args[0])))
+    return found
+
+
+def _layer_modules() -> list[tuple[str, Path]]:
+    """(path from the repository, path) of every module of the three layers outside the store."""
+    return [(path.relative_to(REPO).as_posix(), path) for layer in sorted(FORBIDDEN)
+            for path in sorted((REPO / layer).rglob("*.py")) if not path.relative_to(REPO).as_posix().startswith(STORE)]
+
+
+def test_no_code_outside_the_store_touches_a_session_file() -> None:
+    """The TUI, the CLI, instruments and plugins read a session through its read API, never its h5py file."""
+    problems = [f"{rel}:{line}: {receiver}.file" for rel, path in _layer_modules() for line, receiver in _file_uses(path)
+                if ("*", receiver) not in NOT_A_SESSION_FILE and (rel, receiver) not in NOT_A_SESSION_FILE]
+    assert problems == [], ("use the session's read API (read, attributes, members, tree...) instead of its h5py file:\n"
+                            + "\n".join(problems))
+
+
+def test_only_the_store_names_h5py_in_a_string() -> None:
+    """No way around the contract "only the store imports h5py": no ``importlib.import_module("h5py")``."""
+    problems = [f"{rel}:{line}: {text[:60]!r}" for rel, path in _layer_modules() for line, text in _named_packages(path)
+                if re.search(r"\bh5py\b", text)]
+    assert problems == [], "only mirrorlab.core.store may use h5py:\n" + "\n".join(problems)
+
+
 def test_the_import_contracts_hold(tmp_path: Path) -> None:
     # import-linter maps modules to files under the package's folder: an installed copy, found first on the
     # path (an editable install's mirrorlab folder holds only its __init__)

@@ -32,7 +32,7 @@ def test_the_whole_suite_collects_without_the_data(tmp_path: Path) -> None:
 
 def test_data_tests_skip_naming_the_folder_and_fail_when_required(tmp_path: Path) -> None:
     absent = tmp_path / "absent"
-    module = "tests/kinematics/test_io.py"
+    module = "tests/plugins/kinematics/test_io.py"
     skipped = _pytest("-q", "-rs", module, data=absent)
     assert skipped.returncode == 0, skipped.stdout[-3000:]
     assert f"needs the validation data folder {absent}" in skipped.stdout and " skipped" in skipped.stdout

@@ -18,11 +18,9 @@ from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
-import h5py
-
 from ..algorithms import Algorithm, InputDigests, RunContext, RunOutcome, execute
 from ..digests import block_digests, block_rows, combine, input_entry, read_hashed
-from ..store import files
+from ..store.reader import StoredArray, read_rows
 from .chunks import chunk_bounds, merge_frames
 
 if TYPE_CHECKING:
@@ -55,9 +53,7 @@ def run_chunk(path: str, cls: type[Algorithm], datasets: Mapping[str, str], arra
     Also returns the block digests of the frames of each dataset in ``hashed`` (name -> rows per
     block; ``start`` is on a block boundary), hashed while they are in memory here.
     """
-    f, _ = files.open_readonly(path)
-    with f, files.reading(path):
-        frames = {name: f[dataset][start:stop] for name, dataset in datasets.items()}
+    frames = read_rows(path, dict(datasets), start, stop)
     blocks = {name: block_digests(frames[name], rows) for name, rows in hashed.items()}
     return execute(cls, {**arrays, **frames}, params), blocks
 
@@ -81,12 +77,12 @@ class ChunkedExecutor(Executor):
     def __call__(self, session: Session, cls: type[Algorithm], inputs: Mapping[str, Any],
                  params: Mapping[str, Any], context: RunContext) -> tuple[RunOutcome, InputDigests]:
         values = cls.parameters.validate(dict(params), where=f"{cls.name}.parameters")
-        split = [n for n in cls.frame_wise(values) if isinstance(inputs.get(n), h5py.Dataset)]
+        split = [n for n in cls.frame_wise(values) if isinstance(inputs.get(n), StoredArray)]
         lengths = {inputs[n].shape[0] if inputs[n].ndim else 0 for n in split}
         frames = lengths.pop() if len(lengths) == 1 else 0  # differing lengths: the algorithm reports them
         if not split or frames <= self.chunk_frames:
             return super().__call__(session, cls, inputs, values, context)
-        datasets = {n: inputs[n].name for n in split}
+        datasets = {n: inputs[n].path for n in split}
         arrays, digests = read_hashed({n: v for n, v in inputs.items() if n not in split})
         # Chunks that start on block boundaries are hashed by the workers that read them (image
         # rows are blocks of their own); any other frame input is hashed here meanwhile.

@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import h5py
 import numpy as np
 
 from ..errors import MirrorlabError, Problem, SessionExistsError, ValidationError
@@ -66,8 +65,8 @@ def key_figures(path: Path) -> dict[str, float]:
         refs = s.results()
         figures = {"results_ok": float(sum(r.status == "ok" for r in refs)),
                    "results_failed": float(sum(r.status != "ok" for r in refs))}
-        if isinstance(s.file.get("report"), h5py.Group):
-            for key, value in s.file["report"].attrs.items():
+        if s.exists("/report") and not s.node("/report").is_dataset:
+            for key, value in s.attributes("/report").items():
                 if np.ndim(value) == 0 and isinstance(value, (int, float, np.integer, np.floating)) \
                         and not isinstance(value, (bool, np.bool_)):
                     figures[key] = float(value)

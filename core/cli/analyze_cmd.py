@@ -7,8 +7,6 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-import h5py
-
 from ..algorithms import Algorithm
 from ..errors import Problem, ValidationError
 from ..registry import get_registry
@@ -124,8 +122,8 @@ def analyze(args: argparse.Namespace) -> int:
     with Session.open(args.session, writable=True) as s, progress_bar(not args.no_progress) as on_event:
         s.events.subscribe(on_event)
         ref = s.run(algorithm, inputs, params, label=args.label).require_ok()  # stored with its error; said once, by main()
-        written = {name: (d.shape, d.dtype, d.attrs.get("unit", "")) for name, d in s.file[ref.path].items()
-                   if isinstance(d, h5py.Dataset)}
+        outputs = [s.node(f"{ref.path}/{name}") for name in s.members(ref.path)]
+        written = {n.name: (n.shape, n.dtype, n.unit) for n in outputs if n.is_dataset}
     print(f"{args.session}: {ref.path}" + (f" (@{ref.label})" if ref.label else "") + ": ok")
     for name, (shape, dtype, unit) in written.items():
         print(f"  {ref.path}/{name}: {shape} {dtype}" + (f" [{unit}]" if unit else ""))

@@ -10,12 +10,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from ..errors import Problem, SessionError, ValidationError
 from ..session import Session
-from ..store import files, schema
+from ..store import files
+from ..store.reader import file_tree
 from .options import existing_path
 from .outputs import group_contents, plural
 
@@ -115,16 +115,13 @@ def _replaced(data: object, where: str = "") -> list[str]:
 
 
 def tree(args: argparse.Namespace) -> int:
-    f, _ = files.open_readonly(args.file)
-    items: list[dict[str, Any]] = []
-    with f, files.reading(args.file):
-        def visit(name: str, obj: h5py.HLObject) -> None:
-            entry: dict[str, Any] = {"path": "/" + name, "type": "group" if isinstance(obj, h5py.Group) else "dataset",
-                     "attrs": sorted(obj.attrs)}
-            if isinstance(obj, h5py.Dataset):
-                entry.update(shape=list(obj.shape), dtype=str(obj.dtype))
-            items.append(entry)
-        f.visititems(visit)
+    items = []
+    for node in file_tree(args.file):  # any HDF5 file, not only a session's
+        entry: dict[str, Any] = {"path": node.path, "type": "dataset" if node.is_dataset else "group",
+                                 "attrs": list(node.attrs)}
+        if node.is_dataset:
+            entry.update(shape=list(node.shape), dtype=str(node.dtype))
+        items.append(entry)
     if args.json:
         print(json.dumps(items, indent=2))
         return 0
@@ -174,20 +171,19 @@ def export(args: argparse.Namespace) -> int:
         raise ValidationError([Problem("--out", f"{args.out} does not fit --format {args.format}: {fix}")])
     with files.reading(args.file), Session.open(args.file) as s:
         if args.dataset.startswith("/"):
-            if args.dataset.strip("/") not in s.file or not isinstance(s.file[args.dataset], h5py.Dataset):
+            if not s.exists(args.dataset) or not s.node(args.dataset).is_dataset:
                 raise ValidationError([Problem("DATASET", f"no dataset {args.dataset} in {args.file}; "
                                                           "`mirrorlab session tree` lists them")])
-            ds = s.file[args.dataset]
-            times, data, columns = None, np.atleast_1d(ds[()]), column_names(ds)
+            times, data, columns = None, np.atleast_1d(s.read(args.dataset)), column_names(s, args.dataset)
         else:
             source, _, stream = args.dataset.partition("/")
-            key = next((k for k in (f"instruments/{source}/{stream}", f"controllers/{source}/{stream}")
-                        if stream and k in s.file), None)
+            key = next((k for k in (f"/instruments/{source}/{stream}", f"/controllers/{source}/{stream}")
+                        if stream and s.exists(k)), None)
             if key is None:
                 raise ValidationError([Problem("DATASET", f"no stream {args.dataset} in {args.file}; "
                                                           "`mirrorlab session info` lists the streams")])
             times, data = s.stream(source, stream)
-            columns = [f"time_{schema.attr_str(s.file[key], 'time_unit', 's')}", *column_names(s.file[key]["data"])]
+            columns = [f"time_{s.attributes(key).get('time_unit', 's')}", *column_names(s, f"{key}/data")]
     if args.format == "npy":
         np.save(args.out, data)
         print(f"wrote {args.out}: {plural(len(data), 'sample')} of {'x'.join(map(str, data.shape[1:])) or 'scalar'} "
@@ -211,7 +207,7 @@ def export(args: argparse.Namespace) -> int:
     return 0
 
 
-def column_names(ds: h5py.Dataset) -> list[str]:
+def column_names(session: Session, path: str) -> list[str]:
     """CSV column names of a dataset's values, one per value of a sample (axis 0 is the sample).
 
     The name is the stream's (for ``<stream>/data``) or the dataset's, with the sample index
@@ -219,25 +215,33 @@ def column_names(ds: h5py.Dataset) -> list[str]:
     its group declares (``points_S_A_0``); then the unit (``unit``/``units`` of the dataset, or
     the stream's ``unit``), as in the kinematics CSV files: ``temperature_K``.
     """
-    group = ds.parent
-    stream = ds.name.rsplit("/", 1)[-1] == "data" and "time" in group
-    name = group.name.rsplit("/", 1)[-1] if stream else ds.name.rsplit("/", 1)[-1]
-    unit = schema.attr_str(ds, "unit") or schema.attr_str(ds, "units") or (schema.attr_str(group, "unit") if stream else "")
+    group, _, own = path.rstrip("/").rpartition("/")
+    stream = own == "data" and "time" in session.members(group)
+    name = group.rsplit("/", 1)[-1] if stream else own
+    attrs, group_attrs = session.attributes(path), session.attributes(group or "/")
+    unit = _text(attrs, "unit") or _text(attrs, "units") or (_text(group_attrs, "unit") if stream else "")
     suffix = f"_{unit}" if unit else ""
-    shape = ds.shape[1:]
+    shape = session.node(path).shape[1:]
     if not shape:
         return [name + suffix]
-    labels = _labels(ds) or _labels(group)
+    labels = _labels(attrs) or _labels(group_attrs)
     axes: list[list[str]] = [[str(i) for i in range(n)] for n in shape]
     if labels and len(labels) == shape[0]:
         axes[0] = labels
     return ["_".join((name, *index)) + suffix for index in itertools.product(*axes)]
 
 
-def _labels(obj: h5py.HLObject) -> list[str]:
+def _text(attrs: dict[str, Any], name: str) -> str:
+    """Attribute ``name`` as text (``""`` if absent)."""
+    return str(attrs.get(name, ""))
+
+
+def _labels(attrs: dict[str, Any]) -> list[str]:
     """The ``labels`` attribute (a JSON list, as ``Session.write_group`` stores it), or ``[]``."""
-    try:
-        labels = schema.get_json(obj, "labels", [])
-    except (TypeError, ValueError):  # not JSON text: an array of names, or something else
-        labels = obj.attrs.get("labels", [])
+    labels = attrs.get("labels", [])
+    if isinstance(labels, str):
+        try:
+            labels = json.loads(labels)
+        except ValueError:  # not JSON text: one name
+            pass
     return [str(x.decode() if isinstance(x, bytes) else x) for x in np.atleast_1d(labels)]

@@ -117,6 +117,11 @@ def members(group: h5py.Group, name: str | None = None) -> list[tuple[str, Any]]
     return [(key, group[key]) for key in group]
 
 
+def is_hdf5(path: str | Path) -> bool:
+    """Whether ``path`` is a file in HDF5's format (by its signature, whatever its name), a session or not."""
+    return Path(path).is_file() and h5py.is_hdf5(path)
+
+
 def _require_file(path: Path) -> None:
     if path.is_dir():
         inside = sorted(p.name for p in path.glob("*.h5"))[:3]

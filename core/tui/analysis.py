@@ -100,7 +100,7 @@ class AnalysisScreen(Screen[None]):
         self.set_interval(0.2, self.refresh_status)
 
     def _datasets(self) -> list[str]:
-        return [n.path for n in browse.datasets(self.app.model.session.file)]
+        return [n.path for n in browse.datasets(self.app.model.session)]
 
     def _got_datasets(self, paths: object) -> None:
         self.paths = list(paths)  # type: ignore[call-overload]

@@ -1,5 +1,6 @@
 """What the console shows of a session file: its tree, a dataset's preview, attributes and
-provenance, as plain text (no widgets). These read the file: call them from a worker thread.
+provenance, as plain text (no widgets), read through the session's read API. These read the
+file: call them from a worker thread.
 
 Units: each dataset's ``unit`` attribute; times in session seconds.
 """
@@ -7,11 +8,16 @@ Units: each dataset's ``unit`` attribute; times in session seconds.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import h5py
 import numpy as np
+
+from ..session import Node
+
+if TYPE_CHECKING:
+    from ..session import Session
+
+__all__ = ["PREVIEW_ROWS", "PROVENANCE", "Node", "attributes", "datasets", "describe", "label", "preview", "walk"]
 
 #: Values shown of a dataset (the first rows); the rest is summarised by its shape.
 PREVIEW_ROWS = 6
@@ -19,26 +25,12 @@ PREVIEW_ROWS = 6
 PROVENANCE = ("parameters", "inputs", "input_sha256", "executor", "settings", "identity", "recipe_effective")
 
 
-@dataclass(frozen=True)
-class Node:
-    """One group or dataset of the file: its path, and for a dataset its shape, type and unit."""
-
-    path: str
-    is_dataset: bool
-    shape: tuple[int, ...] = ()
-    dtype: str = ""
-    unit: str = ""
-
-    @property
-    def name(self) -> str:
-        return self.path.rsplit("/", 1)[-1] or "/"
-
-    @property
-    def label(self) -> str:
-        """``xy  (120, 8, 2) float64 px`` for a dataset, the name for a group."""
-        if not self.is_dataset:
-            return self.name
-        return f"{self.name}  {self.shape} {self.dtype} {self.unit}".rstrip()
+def label(node: Node) -> str:
+    """``xy  (120, 8, 2) float64 px`` for a dataset (a table's type as its number of fields), the name for a group."""
+    if not node.is_dataset or node.dtype is None:
+        return node.name
+    dtype = f"{len(node.dtype.names)} fields" if node.dtype.names else str(node.dtype)  # a table: short
+    return f"{node.name}  {node.shape} {dtype} {node.unit}".rstrip()
 
 
 def _text(value: Any) -> str:
@@ -49,33 +41,22 @@ def _text(value: Any) -> str:
     return str(value)
 
 
-def walk(group: h5py.Group) -> list[Node]:
-    """Every group and dataset under ``group``, in the file's order (parents before children).
+def walk(session: Session) -> list[Node]:
+    """Every group and dataset of the session's file, in the file's order (parents before children).
 
     A recorded stream's ``data`` takes the unit of its stream group (where the store keeps it)."""
-    nodes: list[Node] = []
-
-    def visit(name: str, obj: h5py.HLObject) -> None:
-        if isinstance(obj, h5py.Dataset):
-            unit = obj.attrs.get("unit", obj.parent.attrs.get("unit", "") if obj.name.endswith("/data") else "")
-            dtype = f"{len(obj.dtype.names)} fields" if obj.dtype.names else str(obj.dtype)  # a table: short
-            nodes.append(Node(obj.name, True, tuple(obj.shape), dtype, _text(unit)))
-        else:
-            nodes.append(Node(obj.name, False))
-
-    group.visititems(visit)
-    return nodes
+    return session.tree()
 
 
-def datasets(group: h5py.Group) -> list[Node]:
+def datasets(session: Session) -> list[Node]:
     """The datasets of :func:`walk`, as candidate inputs of an algorithm."""
-    return [n for n in walk(group) if n.is_dataset]
+    return [n for n in walk(session) if n.is_dataset]
 
 
-def attributes(obj: h5py.HLObject) -> list[tuple[str, str]]:
-    """``(name, text)`` of each attribute; JSON attributes (provenance) pretty-printed."""
+def attributes(session: Session, path: str) -> list[tuple[str, str]]:
+    """``(name, text)`` of each attribute of ``path``; JSON attributes (provenance) pretty-printed."""
     out = []
-    for key, value in obj.attrs.items():
+    for key, value in session.attributes(path).items():
         text = _text(value)
         if key in PROVENANCE:
             try:
@@ -86,30 +67,30 @@ def attributes(obj: h5py.HLObject) -> list[tuple[str, str]]:
     return out
 
 
-def preview(ds: h5py.Dataset, rows: int = PREVIEW_ROWS) -> str:
+def preview(session: Session, node: Node, rows: int = PREVIEW_ROWS) -> str:
     """The first ``rows`` entries of a dataset (numpy's summary of larger entries), or its text."""
-    if ds.shape == ():
-        return _text(ds[()])
-    if ds.dtype.kind in "OS" or h5py.check_string_dtype(ds.dtype) is not None:
-        return "\n".join(_text(v) for v in ds[:rows])
-    head = ds[: min(rows, ds.shape[0])]
+    if node.shape == ():
+        return _text(session.read(node.path))
+    head = session.read(node.path, slice(0, min(rows, node.shape[0])))
+    if node.dtype is not None and node.dtype.kind in "OS":  # text (h5py's strings are objects or bytes)
+        return "\n".join(_text(v) for v in head)
     with np.printoptions(precision=4, threshold=60, edgeitems=2, linewidth=76, suppress=True):
         text = np.array2string(np.asarray(head))
-    more = ds.shape[0] - len(head)
-    return text + (f"\n… {more} more of {ds.shape[0]}" if more > 0 else "")
+    more = node.shape[0] - len(head)
+    return text + (f"\n… {more} more of {node.shape[0]}" if more > 0 else "")
 
 
-def describe(file: h5py.File, path: str) -> str:
+def describe(session: Session, path: str) -> str:
     """What the browser shows of one node: kind, shape, unit, attributes (with provenance), preview."""
-    obj = file[path]
-    lines = [f"[{'dataset' if isinstance(obj, h5py.Dataset) else 'group'}] {obj.name}"]
-    if isinstance(obj, h5py.Dataset):
-        lines.append(f"shape {obj.shape}, {obj.dtype}")
+    node = session.node(path)
+    lines = [f"[{'dataset' if node.is_dataset else 'group'}] {node.path}"]
+    if node.is_dataset:
+        lines.append(f"shape {node.shape}, {node.dtype}")
     else:
-        lines.append(f"{len(obj)} members")
-    attrs = attributes(obj)
+        lines.append(f"{node.members} members")
+    attrs = attributes(session, path)
     if attrs:
         lines += ["", "attributes:"] + [f"  {k} = {v}" if "\n" not in v else f"  {k} =\n{v}" for k, v in attrs]
-    if isinstance(obj, h5py.Dataset):
-        lines += ["", "first values:", preview(obj)]
+    if node.is_dataset:
+        lines += ["", "first values:", preview(session, node)]
     return "\n".join(lines)

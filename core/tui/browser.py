@@ -46,7 +46,7 @@ class BrowserScreen(Screen[None]):
         self.action_reload()
 
     def action_reload(self) -> None:
-        self.app.in_worker("read the session file", lambda: browse.walk(self.app.model.session.file), self._fill, owner=self)
+        self.app.in_worker("read the session file", lambda: browse.walk(self.app.model.session), self._fill, owner=self)
 
     def _fill(self, nodes: object) -> None:
         tree = self.query_one("#tree", Tree)
@@ -55,7 +55,7 @@ class BrowserScreen(Screen[None]):
         for node in nodes:  # type: ignore[attr-defined]
             parent = parents[node.path.rsplit("/", 1)[0]]  # "/a" → "" (the root), "/a/b" → "/a"
             if node.is_dataset:
-                parent.add_leaf(node.label, data=node)
+                parent.add_leaf(browse.label(node), data=node)
             else:
                 parents[node.path] = parent.add(node.name, data=node)
         self.query_one("#detail", Static).update(f"{len(nodes)} groups and datasets; "  # type: ignore[arg-type]
@@ -66,7 +66,7 @@ class BrowserScreen(Screen[None]):
         if node is None:
             return
         path = node.path
-        self.app.in_worker(f"read {path}", lambda: browse.describe(self.app.model.session.file, path),
+        self.app.in_worker(f"read {path}", lambda: browse.describe(self.app.model.session, path),
                            lambda text: self._show(path, str(text)), owner=self)
 
     def _show(self, path: str, text: str) -> None:

@@ -28,9 +28,8 @@ from . import browse
 from .widgets import KeysFooter
 
 if TYPE_CHECKING:
-    import h5py
-
     from ..registry import Registry
+    from ..session import Session
     from .app import MirrorlabApp
     from .model import Console
 
@@ -58,16 +57,14 @@ def detect(cls: type[Algorithm], frame: np.ndarray) -> np.ndarray:
     return xy[0][np.isfinite(xy[0]).all(axis=-1)] if xy.ndim == 3 else np.empty((0, 2))
 
 
-def stored_pairs(file: h5py.File, frames: int) -> tuple[np.ndarray, np.ndarray] | None:
+def stored_pairs(session: Session, frames: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``real (F, N, 2)`` and ``paired (F, N, E, 2)`` px of the newest result that has both, for
     ``frames`` frames, or ``None``."""
-    groups = [n.path for n in browse.walk(file) if not n.is_dataset and n.path.startswith("/results/")
-              and n.path.count("/") == 3]
-    for path in reversed(groups):
-        g = file[path]
-        if "real" in g and "paired" in g and g["real"].shape[0] == frames:
-            paired = np.asarray(g["paired"][()], dtype=float)
-            return np.asarray(g["real"][()], dtype=float), paired if paired.ndim == 4 else paired[:, :, None, :]
+    runs = [r.path for r in session.results()]
+    for path in reversed(runs):
+        if {"real", "paired"} <= set(session.members(path)) and session.node(f"{path}/real").shape[:1] == (frames,):
+            paired = np.asarray(session.read(f"{path}/paired"), dtype=float)
+            return np.asarray(session.read(f"{path}/real"), dtype=float), paired if paired.ndim == 4 else paired[:, :, None, :]
     return None
 
 
@@ -176,7 +173,7 @@ class CameraScreen(Screen[None]):
             self._in_worker("draw the camera frame", lambda: self._draw(frame, None, where, size))
         elif self.recorded is None:  # read once which recorded image streams the file holds
             self.recorded = []
-            self.app.in_worker("read the session file", lambda: browse.datasets(model.session.file), self._found,
+            self.app.in_worker("read the session file", lambda: browse.datasets(model.session), self._found,
                                owner=self)
         elif not self.recorded:
             self._status("No image recorded yet: press p (preview) or r (record) on the dashboard."
@@ -197,14 +194,13 @@ class CameraScreen(Screen[None]):
         self.app.in_worker(what, job, self._shown, owner=self)
 
     def _read(self, path: str, index: int, size: tuple[int, int]) -> tuple[Pixels, str]:
-        file = self.app.model.session.file
-        ds = file[path]
-        self.frames = ds.shape[0]
+        session = self.app.model.session
+        self.frames = session.node(path).shape[0]
         index = self.frames - 1 if index < 0 else min(index, self.frames - 1)
-        pairs = stored_pairs(file, self.frames)
+        pairs = stored_pairs(session, self.frames)
         frame_pairs = None if pairs is None else (pairs[0][index], pairs[1][index])
         name = path.removeprefix("/instruments/").removesuffix("/data")
-        return self._draw(ds[index], frame_pairs, f"{name} frame {index + 1}/{self.frames} (← →)", size)
+        return self._draw(session.read(path, index), frame_pairs, f"{name} frame {index + 1}/{self.frames} (← →)", size)
 
     def _draw(self, frame: np.ndarray, pairs: Any, where: str, size: tuple[int, int]) -> tuple[Pixels, str]:
         cls = detector(self.app.model.session.registry)

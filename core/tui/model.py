@@ -3,7 +3,8 @@
 :class:`Console` owns one :class:`~mirrorlab.core.session.Session` and reads it only through the
 public runtime API: ``snapshot()`` for states and counters, ``subscribe()`` for live values,
 ``events.subscribe`` for the log, ``start_acquisition`` / ``start_recording`` / ``stop_recording`` /
-``stop_acquisition`` / ``request_stop`` / ``close`` for the operator's actions. It names no
+``stop_acquisition`` / ``connect_instrument`` / ``disconnect_instrument`` / ``request_stop`` / ``close``
+for the operator's actions, and the session's read API for what its file holds. It names no
 instrument or plugin: whatever a recipe connects appears by itself. Widgets call :meth:`poll`
 from a timer (never blocking: it drains bounded subscriptions and takes a snapshot); the actions
 that wait on devices or the disk run in worker threads.
@@ -245,26 +246,13 @@ class Console:
 
     def disconnect(self, source: str) -> None:
         """Stop one instrument (and the controllers bound to it) and release its device; the others go on."""
-        inst = self.session.instruments[source]
-        if self.session.recording and self.session.snapshot().instruments[source].recorded:
-            raise SessionError(f"{source} is being recorded; stop the recording (r) before disconnecting it")
-        self.session.stop_acquisition([source])
-        inst.close()
+        self.session.disconnect_instrument(source)
         self.disconnected.add(source)
-        inst.set_state("stopped", f"{inst.device_name} disconnected by the operator")
 
     def connect(self, source: str) -> None:
         """Connect a disconnected instrument again: open, identify, apply its settings."""
-        inst = self.session.instruments[source]
-        inst.set_state("connecting")
-        try:
-            inst.reconnect()
-        except BaseException:
-            inst.close()
-            inst.set_state("stopped", f"{inst.device_name} did not connect")
-            raise
+        self.session.connect_instrument(source)
         self.disconnected.discard(source)
-        inst.set_state("idle", f"{inst.device_name} connected")
 
     def stop(self) -> None:
         """Stop acquiring (and the recording, written to the end)."""

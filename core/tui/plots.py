@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-import h5py
 import numpy as np
 from rich.text import Text
 from textual.app import ComposeResult
@@ -27,6 +26,7 @@ from .widgets import KeysFooter
 if TYPE_CHECKING:
     from textual_plotext.plot import Plot
 
+    from ..session import Session
     from .app import MirrorlabApp
 
 #: The kinds of plot, in the order the screen lists them, and what makes each appear.
@@ -75,9 +75,9 @@ def _thin(n: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, min(n, MAX_POINTS)).astype(int))
 
 
-def load(file: h5py.File, node: browse.Node, kind: str) -> Series:
+def load(session: Session, node: browse.Node, kind: str) -> Series:
     """The lines of one plot of ``kind`` from dataset ``node`` (reads the file)."""
-    data = np.asarray(file[node.path][()], dtype=float)
+    data = np.asarray(session.read(node.path), dtype=float)
     idx = _thin(data.shape[0])
     frames = idx.astype(float)
     if kind == "trajectories":  # the path of each marker in the x-y plane
@@ -87,7 +87,7 @@ def load(file: h5py.File, node: browse.Node, kind: str) -> Series:
             series.lines.append((points[:, m, 0], points[:, m, 1], f"marker {m}"))
         return series
     if kind == "tracker angles":
-        times = np.asarray(file[node.path.rsplit("/", 1)[0] + "/time"][()], dtype=float)[: data.shape[0]]
+        times = np.asarray(session.read(node.path.rsplit("/", 1)[0] + "/time"), dtype=float)[: data.shape[0]]
         x, xlabel = times[idx], "session time (s)"
     else:
         x, xlabel = frames, "frame"
@@ -147,7 +147,7 @@ class PlotsScreen(Screen[None]):
         self.action_reload()
 
     def action_reload(self) -> None:
-        self.app.in_worker("read the session file", lambda: browse.datasets(self.app.model.session.file), self._fill, owner=self)
+        self.app.in_worker("read the session file", lambda: browse.datasets(self.app.model.session), self._fill, owner=self)
 
     def _fill(self, nodes: object) -> None:
         self.nodes = {}
@@ -172,7 +172,7 @@ class PlotsScreen(Screen[None]):
     def on_select_changed(self, event: Select.Changed) -> None:
         if isinstance(event.value, str) and event.value in self.nodes:
             node, kind = self.nodes[event.value]
-            self.app.in_worker(f"read {node.path}", lambda: load(self.app.model.session.file, node, kind), self._draw, owner=self)
+            self.app.in_worker(f"read {node.path}", lambda: load(self.app.model.session, node, kind), self._draw, owner=self)
 
     def _draw(self, series: object) -> None:
         assert isinstance(series, Series)

@@ -1,7 +1,7 @@
 """The thesis's thrown box (kinematics.md §5, Fig. 3.30) simulated end to end; prints a report.
 
 Run: ``python docs/validation/box_flight.py`` (about 25 s). Writes
-``docs/validation/out/box_flight_apex.png``. The tests in ``tests/kinematics_experiments`` assert
+``docs/validation/out/box_flight_apex.png``. The tests in ``tests/plugins/kinematics/experiments`` assert
 bounds on the same quantities.
 
 Chain: vertex images directly and in the 2 m x 2 m mirror at 42 frames/s (visibility from the box
@@ -26,7 +26,7 @@ from scipy.stats import spearmanr  # noqa: E402
 
 # the measurement chain joins the virtual lab and the plugins it validates: it lives with its tests
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from tests.kinematics_experiments.box_flight import BoxFlight, simulate_box_flight  # noqa: E402
+from tests.plugins.kinematics.experiments.box_flight import BoxFlight, simulate_box_flight  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "out"
 PX_PER_MM = 100.0

@@ -1,6 +1,6 @@
 """Validation figures of mirrorlab.plugins.kinematics (prints a report; no assertions).
 
-Run: ``python docs/validation/kinematics_checks.py``. The tests in ``tests/kinematics`` assert
+Run: ``python docs/validation/kinematics_checks.py``. The tests in ``tests/plugins/kinematics`` assert
 bounds on the same quantities; this script prints the measured values.
 """
 

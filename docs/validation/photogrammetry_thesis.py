@@ -4,7 +4,7 @@ Run:  python docs/validation/photogrammetry_thesis.py
 Prints Fig. 2.4, Tables 2.1–2.3, the §4 central-projection sensitivities, Table 3.1 and the
 Fig. 3.23 mirror-angle minimum next to the thesis / spec values (with why Table 3.1 and Fig. 3.23
 cannot be reproduced: docs/photogrammetry.md, last section), and writes PNG figures into
-docs/validation/out/ (git-ignored). tests/photogrammetry/test_sensitivity.py imports the functions
+docs/validation/out/ (git-ignored). tests/plugins/photogrammetry/test_sensitivity.py imports the functions
 below so this script cannot rot.
 """
 

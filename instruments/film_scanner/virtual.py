@@ -178,10 +178,10 @@ def record_truth(session: Any, label: str) -> str | None:
     settings = inst.settings
     scene = settings.get("scene", "")
     source = settings.get("source", "")
-    simulated = bool(session.file[f"instruments/{label}"].attrs.get("simulated", False))
+    simulated = bool(session.attributes(f"instruments/{label}").get("simulated", False))
     if not scene or not (source == "virtual" or (source == "fscan" and simulated)):
         return None
-    if f"instruments/{label}/frame_index" not in session.file:
+    if not session.exists(f"instruments/{label}/frame_index"):
         return None
     index = np.asarray(session.stream(label, "frame_index").data, dtype=np.int64)
     if index.size == 0:
@@ -201,5 +201,5 @@ def record_truth(session: Any, label: str) -> str | None:
 def record_all_truth(session: Any) -> None:
     """Record the virtual-lab truth of every film scanner of ``session`` (called when recording stops)."""
     for label, inst in session.instruments.items():
-        if getattr(inst, "name", "") == "film_scanner" and f"truth/{label}" not in session.file:
+        if getattr(inst, "name", "") == "film_scanner" and not session.exists(f"truth/{label}"):
             record_truth(session, label)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, figures_folder, schema
+from mirrorlab.core import AlgorithmError, Parameter, ParameterSet, Step, figures_folder
 from mirrorlab.instruments.virtual_lab.figures import Panel, Trace, plot_traces
 from mirrorlab.instruments.virtual_lab.world import image_in_mirror, mirror_normal
 from mirrorlab.instruments.virtual_lab.worlds import latest_truth, truth_arrays
@@ -52,11 +52,11 @@ class ActiveMirrorReport(Step):
     def execute(self, session: Session, values: Mapping[str, Any]) -> None:
         root = latest_truth(session)
         tr = truth_arrays(session, root)
-        settings = schema.get_json(session.file[root], "settings", {})
-        g = session.file[root]
-        camera = np.asarray(schema.get_json(g, "camera"), float)
-        centre = np.asarray(schema.get_json(g, "mirror_centre"), float)
-        size, radius = float(g.attrs["mirror_size"]), float(g.attrs["target_radius"])
+        settings = session.json_attribute(root, "settings", {})
+        camera = np.asarray(session.json_attribute(root, "camera"), float)
+        centre = np.asarray(session.json_attribute(root, "mirror_centre"), float)
+        attrs = session.attributes(root)
+        size, radius = float(attrs["mirror_size"]), float(attrs["target_radius"])
         t = tr["time"]
         start = float(settings["start"])
         end = start + float(settings["width"]) / float(settings["speed"])

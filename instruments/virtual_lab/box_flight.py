@@ -4,7 +4,7 @@ A 200 x 200 x 300 mm, 2.2 kg box with a marker at each vertex is thrown up in fr
 2 m x 2 m plane mirror and filmed by one 16 mm cine camera (42 frames/s): :func:`thesis_box_lab`.
 The measurement chain run on it (mirror triangulation, rigid fit, angular momentum) uses the
 photogrammetry and kinematics plugins, so it lives with its tests
-(``tests/kinematics_experiments/box_flight.py``, reported by ``docs/validation/box_flight.py``).
+(``tests/plugins/kinematics/experiments/box_flight.py``, reported by ``docs/validation/box_flight.py``).
 Units: mm, s, rad, px. World frame: Y up, floor at Y = 0.
 """
 

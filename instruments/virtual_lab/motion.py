@@ -2,7 +2,7 @@
 
 Written here rather than taken from the kinematics plugin: the scenes' analytic quantities are the
 truth that plugin is validated against, so a bug shared by both would cancel out. Each model is
-formulated differently from the plugin's (``tests/virtual_lab/test_own_models.py`` cross-checks
+formulated differently from the plugin's (``tests/instruments/virtual_lab/test_own_models.py`` cross-checks
 the two):
 
 * :func:`rotate`: Rodrigues' rotation of vectors about an axis.

@@ -2,7 +2,7 @@
 
 The lab's optics are its own (a pinhole with OpenCV's distortion model, reflection in a plane),
 written out here rather than taken from the photogrammetry plugin: the truth computed with them
-validates that plugin, so a bug shared by both would cancel out (``tests/virtual_lab`` cross-checks
+validates that plugin, so a bug shared by both would cancel out (``tests/instruments/virtual_lab`` cross-checks
 the two).
 
 * :func:`look_at_camera` builds a :class:`LabCamera` (pinhole projection with OpenCV's radial and

@@ -137,8 +137,8 @@ def record_world_truth(session: Any) -> str | None:
             continue
         for stream in inst.streams():
             key = f"instruments/{label}/{stream.name}/time"
-            if key in session.file and session.file[key].shape[0]:
-                t = session.file[key][:]
+            if session.exists(key) and session.node(key).shape[0]:
+                t = session.read(key)
                 ends += [float(t.min()), float(t.max())]
     if not ends:
         return None
@@ -148,7 +148,7 @@ def record_world_truth(session: Any) -> str | None:
         return None
     truth = shared.truth(times)
     root, n = "truth/world", 1
-    while root in session.file:
+    while session.exists(root):
         n += 1
         root = f"truth/world_{n}"
     world = shared.world
@@ -167,7 +167,7 @@ def record_world_truth(session: Any) -> str | None:
 
 def latest_truth(session: Any) -> str:
     """Path of the last ``/truth/world*`` group (one per recording) or an :class:`AlgorithmError`."""
-    groups = sorted((k for k in session.file.get("truth", {}) if k == "world" or k.startswith("world_")),
+    groups = sorted((k for k in session.members("truth") if k == "world" or k.startswith("world_")),
                     key=lambda k: int(k.partition("_")[2] or 1))
     if not groups:
         raise AlgorithmError(f"no /truth/world in {session.path}: give the recipe a [world] and record "
@@ -177,5 +177,5 @@ def latest_truth(session: Any) -> str:
 
 def truth_arrays(session: Any, root: str) -> dict[str, np.ndarray]:
     """``time`` and every quantity's ``data`` of a ``/truth/world`` group."""
-    g = session.file[root]
-    return {"time": g["target/time"][:], **{name: g[f"{name}/data"][:] for name in g}}
+    return {"time": session.read(f"{root}/target/time"),
+            **{name: session.read(f"{root}/{name}/data") for name in session.members(root)}}

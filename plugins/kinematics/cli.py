@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 from mirrorlab.core import (
     Algorithm,
@@ -35,6 +34,7 @@ from mirrorlab.core import (
     add_parameter_options,
     collected,
     execute,
+    is_hdf5,
     plain,
     progress_bar,
 )
@@ -88,7 +88,7 @@ class Source:
 
 
 def _is_session(path: Path) -> bool:
-    return path.suffix.lower() in (".h5", ".hdf5") or (path.is_file() and h5py.is_hdf5(path))
+    return path.suffix.lower() in (".h5", ".hdf5") or is_hdf5(path)
 
 
 @contextlib.contextmanager
@@ -104,17 +104,17 @@ def open_source(path: Path, dataset: str | None, fmt: str = "auto") -> Iterator[
         yield Source(path, data, data.time)
         return
     with Session.open(path, writable=True) as s:
-        names = marker_names(s.file)
+        names = marker_names(s)
         if not dataset:
             if len(names) != 1:
                 raise ValidationError([Problem("--dataset", f"{path} holds the marker sets {names or 'none'}; "
                                                             "choose one with --dataset NAME")])
             dataset = names[0]
         try:
-            data = read_markers(s.file, dataset)
+            data = read_markers(s, dataset)
         except KinematicsIOError as exc:
             raise ValidationError([Problem("--dataset", str(exc))]) from None
-        yield Source(path, data, marker_time(s.file, dataset), s, dataset.strip("/").split("/")[-1])
+        yield Source(path, data, marker_time(s, dataset), s, dataset.strip("/").split("/")[-1])
 
 
 def marker_columns(data: MarkerData, spec: str, option: str) -> list[int]:
@@ -235,7 +235,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         raise ValidationError([Problem("SESSION", f"no such session file {args.session!r}")])
     with Session.open(args.session) as s:
         try:
-            data = read_markers(s.file, args.dataset)
+            data = read_markers(s, args.dataset)
         except KinematicsIOError as exc:
             raise ValidationError([Problem("DATASET", str(exc))]) from None
     export_markers(data, out, fmt)

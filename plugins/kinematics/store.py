@@ -24,11 +24,9 @@ from __future__ import annotations
 import hashlib
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
-import h5py
 import numpy as np
-from mirrorlab.core import schema
 
 from .errors import KinematicsIOError
 from .io import (
@@ -41,6 +39,9 @@ from .io import (
     write_c3d,
     write_csv,
 )
+
+if TYPE_CHECKING:
+    from mirrorlab.core import Session
 
 __all__ = ["FORMATS", "MARKERS_ROOT", "read_marker_file", "marker_group_path", "import_markers",
            "read_markers", "export_markers", "sha256_file", "resolve_label", "marker_names"]
@@ -106,7 +107,7 @@ def marker_group_path(name: str) -> str:
     return f"/{MARKERS_ROOT}/{name}"
 
 
-def import_markers(session: Any, path: os.PathLike[str] | str, name: str | None = None,
+def import_markers(session: Session, path: os.PathLike[str] | str, name: str | None = None,
                    fmt: str = "auto") -> tuple[str, MarkerData]:
     """Read a marker file and store it as ``/markers/<name>`` in an open, writable session.
 
@@ -133,7 +134,7 @@ def import_markers(session: Any, path: os.PathLike[str] | str, name: str | None 
     fmt = file_format(p, fmt)
     name = name or p.stem
     group = marker_group_path(name)
-    if group.strip("/") in session.file:
+    if session.exists(group):
         raise KinematicsIOError(f"{session.path} already holds {group}; pass another name (--name) "
                                 "because marker datasets are never overwritten")
     data = FORMATS[fmt](p)
@@ -145,24 +146,25 @@ def import_markers(session: Any, path: os.PathLike[str] | str, name: str | None 
     return group, data
 
 
-def _group_of(file: h5py.File, name: str) -> h5py.Group:
+def _group_of(session: Session, name: str) -> str:
+    """The path of the marker group ``name`` (``/markers/<name>``, or any group path holding ``points``)."""
     key = name.strip("/")
     if "/" not in key:
         key = f"{MARKERS_ROOT}/{key}"
-    if key not in file or not isinstance(file[key], h5py.Group) or "points" not in file[key]:
-        have = sorted(file.get(MARKERS_ROOT, {}).keys())
-        raise KinematicsIOError(f"{file.filename} has no marker dataset {name!r} (a group with 'points'); "
+    if "points" not in session.members(key):
+        have = sorted(session.members(MARKERS_ROOT))
+        raise KinematicsIOError(f"{session.path} has no marker dataset {name!r} (a group with 'points'); "
                                 f"marker datasets here: {have or 'none'} (`mirrorlab kinematics import` adds one)")
-    return file[key]
+    return f"/{key}"
 
 
-def marker_names(file: h5py.File) -> list[str]:
+def marker_names(session: Session) -> list[str]:
     """Names of the marker datasets under ``/markers``."""
-    return sorted(k for k, g in file.get(MARKERS_ROOT, {}).items() if isinstance(g, h5py.Group) and "points" in g)
+    return sorted(k for k in session.members(MARKERS_ROOT) if "points" in session.members(f"{MARKERS_ROOT}/{k}"))
 
 
-def read_markers(file: h5py.File, name: str) -> MarkerData:
-    """Read ``/markers/<name>`` (or any group path holding ``points`` in this layout).
+def read_markers(session: Session, name: str) -> MarkerData:
+    """Read ``/markers/<name>`` (or any group path holding ``points`` in this layout) of ``session``.
 
     ``labels`` default to ``M1..Mn`` and ``rate`` is derived from ``time`` when the attributes are
     absent (e.g. markers reconstructed by another plugin).
@@ -172,29 +174,30 @@ def read_markers(file: h5py.File, name: str) -> MarkerData:
     KinematicsIOError
         No such group, or ``points`` not (T, M, 3).
     """
-    g = _group_of(file, name)
-    pts = np.asarray(g["points"][()], dtype=float)
+    group = _group_of(session, name)
+    pts = np.asarray(session.read(f"{group}/points"), dtype=float)
     if pts.ndim != 3 or pts.shape[2] != 3:
-        raise KinematicsIOError(f"{g.name}/points has shape {pts.shape}; expected (frames, markers, 3)")
-    labels = schema.get_json(g, "labels", None) or [f"M{k + 1}" for k in range(pts.shape[1])]
+        raise KinematicsIOError(f"{group}/points has shape {pts.shape}; expected (frames, markers, 3)")
+    labels = session.json_attribute(group, "labels", None) or [f"M{k + 1}" for k in range(pts.shape[1])]
     if len(labels) != pts.shape[1]:
-        raise KinematicsIOError(f"{g.name}: {len(labels)} labels for {pts.shape[1]} markers")
-    first = int(g.attrs.get("first_frame", 0))
-    if "rate" in g.attrs:
-        rate = float(g.attrs["rate"])
-    elif "time" in g and g["time"].shape[0] > 1:
-        rate = float(1.0 / np.median(np.diff(g["time"][()])))
+        raise KinematicsIOError(f"{group}: {len(labels)} labels for {pts.shape[1]} markers")
+    attrs = session.attributes(group)
+    first = int(attrs.get("first_frame", 0))
+    if "rate" in attrs:
+        rate = float(attrs["rate"])
+    elif "time" in session.members(group) and session.node(f"{group}/time").shape[0] > 1:
+        rate = float(1.0 / np.median(np.diff(session.read(f"{group}/time"))))
     else:
-        raise KinematicsIOError(f"{g.name} has neither a 'rate' attribute nor a 'time' dataset")
+        raise KinematicsIOError(f"{group} has neither a 'rate' attribute nor a 'time' dataset")
     return MarkerData(list(labels), rate, pts, first)
 
 
-def marker_time(file: h5py.File, name: str) -> np.ndarray:
-    """The ``time`` dataset of a marker group (or ``(first_frame + k) / rate``)."""
-    g = _group_of(file, name)
-    if "time" in g:
-        return np.asarray(g["time"][()], dtype=float)
-    return read_markers(file, name).time
+def marker_time(session: Session, name: str) -> np.ndarray:
+    """The ``time`` dataset of a marker group of ``session`` (or ``(first_frame + k) / rate``)."""
+    group = _group_of(session, name)
+    if "time" in session.members(group):
+        return np.asarray(session.read(f"{group}/time"), dtype=float)
+    return read_markers(session, name).time
 
 
 def export_markers(data: MarkerData, out: os.PathLike[str] | str, fmt: str) -> None:

@@ -53,7 +53,7 @@ def _load(source: str, dataset: str | None) -> np.ndarray:
         raise ValidationError([Problem("--dataset", f"{source} is not a .npy file: name the dataset of the session, "
                                                     "e.g. --dataset @detect_markers/xy")])
     with Session.open(path) as s:
-        return np.asarray(s.file[s.resolve(dataset, "--dataset")][()])
+        return np.asarray(s.read(s.resolve(dataset, "--dataset")))
 
 
 def _run(algorithm: type[Algorithm], inputs: Mapping[str, Any], params: Mapping[str, Any]) -> dict[str, Any]:

@@ -102,10 +102,10 @@ class FourBarReport(Step):
 
         key = f"truth/{values['instrument']}/analytic/lengths"
         if values["instrument"]:
-            if key not in session.file:
+            if not session.exists(key):
                 raise AlgorithmError(f"no {key} in {session.path}: is {values['instrument']!r} a virtual-lab four-bar "
                                      "camera? (or leave instrument empty and give true_lengths)")
-            true_vals = [float(x) for x in session.file[key][0]]
+            true_vals = [float(x) for x in session.read(key, 0)]
         else:
             true_vals = list(values["true_lengths"])
         true = dict(zip(LINK_NAMES, true_vals, strict=True))

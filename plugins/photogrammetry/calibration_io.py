@@ -90,17 +90,17 @@ def require_new_camera(session: Session, camera: str) -> None:
     """Refuse early if ``/calibration/<camera>`` exists (groups are never overwritten)."""
     if not camera or "/" in camera:
         raise InvalidArgument(f"camera name {camera!r} must be a non-empty name without '/', e.g. 'cam'")
-    if f"calibration/{camera}" in session.file:
+    if session.exists(f"calibration/{camera}"):
         raise SessionError(f"/calibration/{camera} already exists in {session.path}; choose another camera name")
 
 
 def calibration_inputs(session: Session, group: str, algorithm: type[Algorithm]) -> dict[str, str]:
     """Dataset paths of a calibration group for the camera inputs ``algorithm`` declares."""
     key = group.strip("/")
-    if key not in session.file:
+    if not session.exists(key):
         raise SessionError(f"no calibration group {group} in {session.path}; run a calibrate step first "
                            "(`mirrorlab session tree FILE` lists the groups)")
     declared = {p.name for p in algorithm.inputs}
-    return {name: f"/{key}/{name}" for name in session.file[key] if name in declared and name in CAMERA_KEYS}
+    return {name: f"/{key}/{name}" for name in session.members(key) if name in declared and name in CAMERA_KEYS}
 
 

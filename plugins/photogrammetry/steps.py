@@ -61,7 +61,7 @@ class Calibrate(AlgorithmStep):
 
     @classmethod
     def session_problems(cls, session: Session, values: Mapping[str, Any], where: str) -> list[Problem]:
-        if f"calibration/{values['camera']}" not in session.file:
+        if not session.exists(f"calibration/{values['camera']}"):
             return []
         return [Problem(f"{where}.camera", f"/calibration/{values['camera']} already exists in {session.path.name}; "
                                            "calibration groups are never overwritten")]

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
-from mirrorlab.core import save_figure, schema
+from mirrorlab.core import save_figure
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
@@ -222,7 +222,7 @@ class DemoReport:
     def store(self, session: Session) -> str:
         """Write the summary numbers to ``/report`` (``/report-2``... if present)."""
         name, n = "report", 1
-        while name in session.file:
+        while session.exists(name):
             n += 1
             name = f"report-{n}"
         dg = self.digitising
@@ -258,13 +258,13 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     PipelineError
         A needed result or the truth group is missing, or frame counts disagree.
     """
-    f = session.file
-    if f"truth/{instrument}/markers" not in f:
+    if not session.exists(f"truth/{instrument}/markers"):
         raise PipelineError(f"no /truth/{instrument} in {session.path}: the report compares against the virtual "
                             "lab's ground truth, so record the instrument with source = \"virtual\"")
-    tg = f[f"truth/{instrument}/markers"]
-    true_pos = tg["positions"][()]
-    labels = [x.decode() if isinstance(x, bytes) else str(x) for x in tg["labels"][()]]
+    truth = session.truth(instrument)
+    tg = session.attributes(f"truth/{instrument}/markers")
+    true_pos = truth["markers/positions"]
+    labels = [x.decode() if isinstance(x, bytes) else str(x) for x in truth["markers/labels"]]
     points = np.asarray(_latest(session, "reconstruct_mirror")["points"], float)
     if len(points) != len(true_pos):
         raise PipelineError(f"{len(points)} reconstructed frames but {len(true_pos)} truth frames in "
@@ -284,12 +284,12 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     systematic = np.nanmean(err[have], axis=0) if have.any() else np.full(3, np.nan)
 
     # pairing against the truth's images (in scanner pixels)
-    settings = schema.get_json(f[f"instruments/{instrument}"], "settings", {})
+    settings = session.json_attribute(f"instruments/{instrument}", "settings", {})
     lines = int(settings.get("lines", SCAN_LINES))
-    w, h = int(tg.attrs["image_width"]), int(tg.attrs["image_height"])
-    first = float(tg.attrs["scan_first_line"]) if "scan_first_line" in tg.attrs else None
-    t_real = scan_pixels(tg["real_xy"][()], w, h, lines, first)                 # (F, M, 2)
-    t_all = scan_pixels(tg["virtual_xy"][()], w, h, lines, first)               # (F, K, M, 2)
+    w, h = int(tg["image_width"]), int(tg["image_height"])
+    first = float(tg["scan_first_line"]) if "scan_first_line" in tg else None
+    t_real = scan_pixels(truth["markers/real_xy"], w, h, lines, first)           # (F, M, 2)
+    t_all = scan_pixels(truth["markers/virtual_xy"], w, h, lines, first)         # (F, K, M, 2)
     t_virt = t_all[:, 0]                                                        # mirror 0
     mt = _latest(session, "mirror_tracks")
     rxy, vxy = np.asarray(mt["real_xy"], float), np.asarray(mt["virtual_xy"], float)
@@ -299,18 +299,16 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     for t, m in track_to_marker.items():
         ok = pair_is_correct(rxy[:, t], vxy[:, t], t_real, t_virt, m)
         correct += int(np.sum(ok & decided[:, t]))
-    visible = int(np.sum(tg["real_visible"][()] & tg["virtual_visible"][()][:, 0]))
+    visible = int(np.sum(truth["markers/real_visible"] & truth["markers/virtual_visible"][:, 0]))
 
     cal = {}
-    for name in f.get("calibration", {}):
-        cal = {"rms": float(np.asarray(f[f"calibration/{name}/rms"][()])) if "rms" in f[f"calibration/{name}"]
-               else float("nan"),
-               "points": int(len(f[f"calibration/{name}/residuals"])) if "residuals" in f[f"calibration/{name}"]
-               else 0,
-               "model": schema.attr_str(f[f"calibration/{name}"], "model")}
+    for name in session.members("calibration"):
+        group, held = f"calibration/{name}", session.members(f"calibration/{name}")
+        cal = {"rms": float(np.asarray(session.read(f"{group}/rms"))) if "rms" in held else float("nan"),
+               "points": int(session.node(f"{group}/residuals").shape[0]) if "residuals" in held else 0,
+               "model": str(session.attributes(group).get("model", ""))}
     normal = np.asarray(_latest(session, "mirror_normal")["normal"], float).reshape(-1)[:3]
-    true_normal = f[f"truth/{instrument}/mirrors/normal"][()][0] if f"truth/{instrument}/mirrors" in f \
-        else np.full(3, np.nan)
+    true_normal = truth["mirrors/normal"][0] if session.exists(f"truth/{instrument}/mirrors") else np.full(3, np.nan)
     angle = float(np.arccos(np.clip(abs(normal @ true_normal) / np.linalg.norm(normal) / np.linalg.norm(true_normal),
                                     -1, 1)))
 
@@ -321,13 +319,13 @@ def build_report(session: Session, instrument: str) -> DemoReport:
     kin = {k: np.asarray(v, float) for k, v in _latest(session, "rssr_angles").items()}
     markers = _latest(session, "rssr_markers")
     time = np.asarray(markers["time"], float)
-    ag = f[f"truth/{instrument}/analytic"]
-    analytic = {k: ag[k][()] for k in ("theta", "theta_dot", "theta_ddot", "phi", "phi_dot", "phi_ddot") if k in ag}
+    analytic = {k: truth[f"analytic/{k}"] for k in ("theta", "theta_dot", "theta_ddot", "phi", "phi_dot", "phi_ddot")
+                if f"analytic/{k}" in truth}
     k_rms = kinematic_rms(kin, analytic)
     return DemoReport(str(session.path), labels, F, float(markers["frame_period"]), time, measured, true_pos, rms,
                       have.sum(axis=0).astype(np.int64), systematic, correct, int(decided.sum()), visible,
                       cal.get("rms", float("nan")), cal.get("points", 0), cal.get("model", ""), normal, angle,
-                      kin, analytic, k_rms, digitising, schema.attr_str(tg, "source"))
+                      kin, analytic, k_rms, digitising, str(tg.get("source", "")))
 
 
 def _detections(session: Session, instrument: str) -> FloatArray | None:

@@ -119,8 +119,8 @@ def session_marker_chain(path: os.PathLike[str] | str, dataset: str, joints: Seq
 
     with Session.open(path) as s:
         try:
-            data = read_markers(s.file, dataset)
-            t = marker_time(s.file, dataset)
+            data = read_markers(s, dataset)
+            t = marker_time(s, dataset)
         except KinematicsIOError as exc:
             raise SourceError(f"{path}: {exc}") from None
     m = marker_chain(data, joints, f"{path}:/markers/{dataset}")

@@ -6,7 +6,8 @@ import pytest
 
 from tests.support import assert_examples_pass
 
-MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.cli.options",
+MODULES = ["mirrorlab.core.params", "mirrorlab.core.session", "mirrorlab.core.store.reader", "mirrorlab.core.store.session_file",
+           "mirrorlab.core.cli.options",
            "mirrorlab.core.batch.chunks", "mirrorlab.core.digests", "mirrorlab.core.batch.options", "mirrorlab.core.tui.latest",
            "mirrorlab.core.tui.ticks", "mirrorlab.core.algorithms", "mirrorlab.core.figures",
            "mirrorlab.core.devices.simulator", "mirrorlab.core.devices.streaming", "mirrorlab.core.devices.wire"]

@@ -78,14 +78,26 @@ def test_wheel_contains_every_module(wheel: Path) -> None:
         assert f"{path}.py" in names or f"{path}/__init__.py" in names, module
 
 
-def _venv(where: Path, *install: str) -> tuple[Path, Path]:
+@pytest.fixture(scope="session")
+def dependencies(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """This venv's site dir without mirrorlab: a folder of links to everything else it holds. Whether the test run's
+    own mirrorlab is editable (a developer's) or a wheel (CI's), the venvs below must see only the one they install;
+    .pth files stay off because the folder is added as a plain path, not a site dir."""
+    where = tmp_path_factory.mktemp("dependencies")
+    for entry in Path(sysconfig.get_paths()["purelib"]).iterdir():
+        if not entry.name.lower().startswith(("mirrorlab", "__editable__")) and entry.suffix != ".pth":
+            (where / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
+    return where
+
+
+def _venv(where: Path, dependencies: Path, *install: str) -> tuple[Path, Path]:
     """A venv (its python and site dir) with ``pip install --target <site> *install`` of mirrorlab alone; the
-    dependencies come from this venv as a plain path, so its .pth files (the project's editable finder) stay off."""
+    dependencies come from ``dependencies`` (see the fixture) as a plain path."""
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(where)], check=True)
     purelib = Path(sysconfig.get_paths(vars={"base": str(where), "platbase": str(where)})["purelib"])
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target",
                     str(purelib), *install], check=True, capture_output=True)
-    (purelib / "_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    (purelib / "_dependencies.pth").write_text(f"{dependencies}\n")
     return where / "bin" / "python", purelib
 
 
@@ -119,28 +131,29 @@ def clone(tmp_path: Path) -> Path:
     return where
 
 
-def test_fresh_non_editable_install_finds_the_builtins(wheel: Path, tmp_path: Path) -> None:
+def test_fresh_non_editable_install_finds_the_builtins(wheel: Path, dependencies: Path, tmp_path: Path) -> None:
     """A venv with the wheel installed (not the editable checkout) discovers every built-in plugin from it."""
-    python, purelib = _venv(tmp_path / "venv", str(wheel))
+    python, purelib = _venv(tmp_path / "venv", dependencies, str(wheel))
     found = _probe(python, cwd=tmp_path)
     assert found["where"] == [str(purelib / "mirrorlab" / "plugins")], found["where"]
     _assert_builtins(found)
 
 
-def test_python_beside_a_clone_imports_the_installed_package(wheel: Path, clone: Path, tmp_path: Path) -> None:
+def test_python_beside_a_clone_imports_the_installed_package(wheel: Path, clone: Path, dependencies: Path,
+                                                              tmp_path: Path) -> None:
     """``python`` started in the folder holding a clone named mirrorlab (the README's layout, ``shared/`` beside
     the clone) imports the install: a namespace ``mirrorlab`` would be assembled from the clone first."""
-    python, purelib = _venv(tmp_path / "venv", str(wheel))
+    python, purelib = _venv(tmp_path / "venv", dependencies, str(wheel))
     found = _probe(python, cwd=clone.parent)
     assert (found["init"], found["core"]) == (str(purelib / "mirrorlab" / "__init__.py"),
                                                str(purelib / "mirrorlab" / "core" / "__init__.py")), found
     _assert_builtins(found)
 
 
-def test_editable_install_of_a_clone(clone: Path, tmp_path: Path) -> None:
+def test_editable_install_of_a_clone(clone: Path, dependencies: Path, tmp_path: Path) -> None:
     """``pip install -e`` of a clone: ``mirrorlab`` is the regular package mapped from core/_mirrorlab, and the
     code is the clone's, from any folder."""
-    python, _ = _venv(tmp_path / "venv", "-e", str(clone))
+    python, _ = _venv(tmp_path / "venv", dependencies, "-e", str(clone))
     installed = (str(clone / "core" / "_mirrorlab" / "__init__.py"), str(clone / "core" / "__init__.py"))
     found = _probe(python, cwd=tmp_path)
     assert (found["init"], found["core"]) == installed, found

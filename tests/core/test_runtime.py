@@ -12,10 +12,9 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pytest
-from mirrorlab.core import Session, ValidationError
+from mirrorlab.core import DeviceError, Session, SessionError, ValidationError
 from mirrorlab.core.controller_runtime import ControllerContext
 from mirrorlab.core.controllers import Controller
 from mirrorlab.core.events import Event
@@ -63,7 +62,7 @@ def test_acquisition_streams_without_writing_and_recording_switches_the_file_on(
     with loop.subscribe("sensor", "angle") as live:
         loop.start_acquisition(["sensor"])
         next_blocks(live, 20)
-        assert "angle" not in loop.file["instruments/sensor"]  # acquiring wrote nothing
+        assert "angle" not in loop.members("instruments/sensor")  # acquiring wrote nothing
         thread = loop.instruments["sensor"]._thread
         loop.start_recording(["sensor"])
         assert loop.instruments["sensor"]._thread is thread  # the device was not restarted
@@ -73,7 +72,7 @@ def test_acquisition_streams_without_writing_and_recording_switches_the_file_on(
         assert loop.instruments["sensor"].state == "acquiring" and loop.acquiring  # acquisition goes on
         next_blocks(live, 5)
         assert stats["sensor/angle"]["samples"] >= 20 and stats["sensor/angle"]["dropped"] == 0
-        assert loop.file["instruments/sensor/angle/data"].shape[0] == stats["sensor/angle"]["samples"]
+        assert loop.node("instruments/sensor/angle/data").shape[0] == stats["sensor/angle"]["samples"]
         loop.stop_acquisition()
     assert live.closed and loop.instruments["sensor"].state == "stopped" and not loop.acquiring
 
@@ -86,23 +85,18 @@ def test_the_loop_records_setpoints_and_latency_of_each_command(loop: Session) -
         loop.stop_acquisition()  # the loop, then the instruments, then the recording: nothing sent goes unrecorded
     assert snap.controllers["loop"].state == "running" and snap.controllers["loop"].latency.count >= 50
     assert not loop.recording
-    g = loop.file["controllers/loop"]
-    assert g.attrs["plugin"] == "follow" and json_attr(g, "instruments") == {"output": "act"}
-    sent = g["output.target/data"][()]
-    angles = loop.file["instruments/sensor/angle/data"][()]
+    g = loop.read_group("controllers/loop")
+    assert loop.attributes("controllers/loop")["plugin"] == "follow"
+    assert loop.json_attribute("controllers/loop", "instruments") == {"output": "act"}
+    sent = g["output.target/data"]
+    angles = loop.read("instruments/sensor/angle/data")
     assert len(sent) >= 50 and g["latency/data"].shape == sent.shape
-    assert g["output.target"].attrs["unit"] == "rad" and g["latency"].attrs["unit"] == "s"
+    assert loop.stream("loop", "output.target").unit == "rad" and loop.stream("loop", "latency").unit == "s"
     # every set-point is exactly half of a recorded angle sample (θt = θv / 2)
     assert np.isin(sent, 0.5 * angles).all()
-    assert (g["latency/data"][()] > 0).all()
+    assert (g["latency/data"] > 0).all()
     # the actuator holds the last set-point it acknowledged (integer µrad on the wire)
     assert loop.instruments["act"].query("TGT?").field(0, "µrad", int) == round(sent[-1] * 1e6)
-
-
-def json_attr(g: h5py.Group, name: str) -> object:
-    import json
-
-    return json.loads(g.attrs[name])
 
 
 class Breaks(Controller):
@@ -211,7 +205,7 @@ def test_a_second_recording_reports_only_its_own_drops(loop: Session) -> None:
         second = loop.stop_recording()
     assert first["sensor/angle"]["dropped"] > 0
     assert second["sensor/angle"]["dropped"] == 0 and second["sensor/angle"]["samples"] >= 10
-    assert loop.file["instruments/sensor/angle"].attrs["dropped"] == 0
+    assert loop.attributes("instruments/sensor/angle")["dropped"] == 0
     assert loop.snapshot().instruments["sensor"].dropped == 0
 
 
@@ -248,6 +242,52 @@ def test_an_unplugged_device_fails_after_its_reconnect_budget(tmp_path: Path) ->
         assert len(events) == 1 and "did not come back within 0.5 s" in events[0].message
 
 
+def _in_thread(call: Callable[[], None]) -> tuple[threading.Thread, threading.Event]:
+    done = threading.Event()
+    worker = threading.Thread(target=lambda: (call(), done.set()))
+    worker.start()
+    return worker, done
+
+
+def test_disconnecting_and_connecting_an_instrument_take_the_session_lock(loop: Session) -> None:
+    sensor, act = loop.instruments["sensor"], loop.instruments["act"]
+    loop.start_acquisition()
+    wait_for(lambda: loop.controllers["loop"].running, "the loop to run")
+    with loop._runtime.lock:  # another thread changes the session's state meanwhile
+        worker, done = _in_thread(lambda: loop.disconnect_instrument("sensor"))
+        assert not done.wait(0.3) and sensor.state == "acquiring"  # it waits for the lock
+    assert done.wait(HANG), "disconnect_instrument hangs"
+    worker.join()
+    assert sensor.state == "stopped" and not loop.controllers["loop"].running  # its controller stopped with it
+    assert act.state == "acquiring" and loop.snapshot().instruments["sensor"].acquiring is False  # the others go on
+    with loop._runtime.lock:
+        worker, done = _in_thread(lambda: loop.connect_instrument("sensor"))
+        assert not done.wait(0.3) and sensor.state == "stopped"
+    assert done.wait(HANG), "connect_instrument hangs"
+    worker.join()
+    assert sensor.state == "idle"
+    with loop.subscribe("sensor", "angle") as live:
+        loop.start_acquisition(["sensor"])
+        next_blocks(live, 5)  # connected again: it streams
+
+
+def test_a_recorded_instrument_is_not_disconnected_and_a_failed_connect_leaves_it_stopped(loop: Session) -> None:
+    sensor = loop.instruments["sensor"]
+    loop.start_recording(["sensor"])
+    with pytest.raises(SessionError, match="sensor is being recorded; stop the recording before disconnecting it"):
+        loop.disconnect_instrument("sensor")
+    assert sensor.state == "acquiring" and loop.recording
+    loop.stop_recording()
+    with pytest.raises(SessionError, match="no instrument 'nope' in this session; its instruments: sensor, act"):
+        loop.disconnect_instrument("nope")
+    loop.disconnect_instrument("sensor")
+    loop.simulator("sensor").close()  # the device is gone: connecting fails
+    states = collect(loop, "state")
+    with pytest.raises(DeviceError):
+        loop.connect_instrument("sensor")
+    assert sensor.state == "stopped" and states[-1].message.endswith("did not connect")
+
+
 def test_a_folder_source_resumes_where_it_was_after_a_reconnect(tmp_path: Path) -> None:
     import cv2
 
@@ -273,7 +313,7 @@ def test_controller_bindings_are_checked_when_added(tmp_path: Path) -> None:
         assert "controllers.c.inputs.input: 'sensor/nothing' is no stream of this session; sensor has: angle" in text
         assert "controllers.c.instruments.output: actuator 'act' has no live-settable speed" in text
         assert "controllers.c.instruments.extra: follow commands no 'extra'" in text
-        assert not s.controllers and "controllers/c" not in s.file
+        assert not s.controllers and not s.exists("controllers/c")
 
 
 class Bursts(Controller):
@@ -312,9 +352,9 @@ def test_send_keeps_the_newest_setpoint_and_records_what_was_acknowledged(tmp_pa
         snap = s.snapshot().controllers["c"]
         s.stop_acquisition()
         given = runner.controller.given
-        sent = s.file["controllers/c/output.target/data"][()]
+        sent = s.read("controllers/c/output.target/data")
         assert snap.superseded_commands > 0 and snap.failed_commands == 0, snap
-        assert len(sent) == snap.commands and s.file["controllers/c/latency/data"].shape == sent.shape
+        assert len(sent) == snap.commands and s.node("controllers/c/latency/data").shape == sent.shape
         # what reached the actuator is the given values in order, some skipped, the last one always
         positions = [int(np.argmin(np.abs(np.asarray(given) - v))) for v in sent]
         # the floats as given, stored: exact but for rounding

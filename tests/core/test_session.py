@@ -76,7 +76,7 @@ def test_results_are_never_overwritten_and_failures_are_kept(recorded: Path, reg
         r1, r2, r3 = (s.result(r) for r in (first, second, failed))
         assert r1.attrs["status"] == "ok" and r1.attrs["parameters"] == {"skip": 0.0}
         assert r2.attrs["parameters"] == {"skip": 0.2} and r2.attrs["inputs"] == {"time": TIME, "values": VALUES}
-        assert r1.outputs["rate"] == pytest.approx(0.005, abs=_slope_tolerance(s.file[TIME][()]))   # as above
+        assert r1.outputs["rate"] == pytest.approx(0.005, abs=_slope_tolerance(s.read(TIME)))   # as above
         assert r3.ref.status == "failed" and "need at least 2 samples" in r3.attrs["error"]
         assert r1.attrs["plugin_version"] == "0.3.0" and r1.attrs["finished_utc"] >= r1.attrs["started_utc"]
         kinds = [e["kind"] for e in s.log()]
@@ -151,7 +151,7 @@ def test_recording_survives_a_device_disconnect(tmp_path: Path, registry) -> Non
     with Session.open(path) as s:
         kinds = [e["kind"] for e in s.log()]
         times, _ = s.stream("thermo", "temperature")
-        assert s.file["instruments/thermo"].attrs["reconnects"] >= 1
+        assert s.attributes("instruments/thermo")["reconnects"] >= 1
     assert "connection_lost" in kinds and "reconnected" in kinds
     assert times.max() > after  # samples after the reconnect were recorded
 
@@ -183,9 +183,9 @@ def test_record_a_subset_and_until_sources_end(tmp_path: Path, registry) -> None
         s.record(None, instruments=["cam"])
     with Session.open(path) as s:
         assert s.stream("a", "temperature").data.size > 20
-        assert "temperature" not in s.file["instruments/b"]
+        assert "temperature" not in s.members("instruments/b")
         assert s.stream("cam", "frame_index").data.tolist() == [0, 1, 2, 3, 4]
-        assert "truth/cam" in s.file
+        assert s.exists("truth/cam")
 
 
 def test_results_chain_through_references(tmp_path: Path, registry) -> None:

@@ -81,7 +81,7 @@ def test_array_inputs_are_stored_by_their_sha256(session_file: Path, registry) -
     with Session.open(session_file, writable=True, registry=registry) as s:
         ref = s.run("acme_drift_rate", {"time": T, "values": values})
         r = s.result(ref)
-        unit = s.file[ref.path]["rate"].attrs["unit"]
+        unit = s.attributes(f"{ref.path}/rate")["unit"]
     assert r.attrs["inputs"] == {"time": "sha256:" + sha256(T), "values": "sha256:" + sha256(KELVIN)}
     assert r.attrs["input_sha256"]["values"] == entry(KELVIN)
     assert r.outputs["rate"] == pytest.approx(0.005, abs=RATE_TOL)              # as above
@@ -135,7 +135,7 @@ def test_a_run_whose_writing_fails_is_incomplete_never_ok(session_file: Path, re
     with Session.open(session_file, registry=registry) as s:
         (ref,) = s.results("big")
         assert ref.status == "incomplete" and s.result(ref).attrs["status"] == "incomplete"
-        assert "status" not in s.file[ref.path].attrs and "small" in s.file[ref.path]  # written before the failure
+        assert "status" not in s.attributes(ref.path) and "small" in s.members(ref.path)  # written before the failure
         with pytest.raises(ValidationError, match="no successful run of 'big'"):
             s.resolve("@big/small")
         assert "result_incomplete" in [e["kind"] for e in s.log()]
@@ -313,7 +313,7 @@ def test_cancelled_run_is_stored_as_cancelled_and_overwrites_nothing(session_fil
         assert not worker.is_alive()
         ref = outcome["ref"]
         assert (ref.status, ref.error, ref.label) == ("cancelled", "stopped on request", "stopped")
-        assert list(s.file[ref.path]) == [] and s.file[ref.path].attrs["status"] == "cancelled"
+        assert s.members(ref.path) == [] and s.attributes(ref.path)["status"] == "cancelled"
         assert s.resolve("@acme_drift_rate/rate") == f"{first.path}/rate"  # the earlier run still answers
         with pytest.raises(ValidationError, match="no successful run of 'stopped'"):
             s.resolve("@stopped/rate")
@@ -351,7 +351,7 @@ def test_outputs_without_a_declaration_or_a_storable_type_fail_cleanly(algorithm
                                                                        session_file: Path, registry) -> None:
     with Session.open(session_file, writable=True, registry=registry) as s:
         ref = s.run(algorithm, {})
-        assert ref.status == "failed" and ref.error.startswith(error) and list(s.file[ref.path]) == []
+        assert ref.status == "failed" and ref.error.startswith(error) and s.members(ref.path) == []
 
 
 def test_execute_reports_cancellation_at_the_first_check() -> None:
