@@ -130,7 +130,7 @@ class ActuatorModel(_Streaming):
 
     def cmd_TGT_Q(self, args: list[str]) -> Lines:
         self.expect(args, 0, "TGT?")
-        yield f"OK {int(self.target)}"
+        yield f"OK {int(round(self.target))}"   # after HOLD the target is the position: rounded as HOLD and POS?
 
     def cmd_SPEED(self, args: list[str]) -> Lines:
         self.expect(args, 1, "SPEED <urad/s>")
@@ -148,7 +148,7 @@ class ActuatorModel(_Streaming):
         yield f"OK {int(round(self.position))}"
 
     def truth_lines(self) -> list[str]:
-        return [f"POS {self.position:.1f}", f"TGT {self.target:.1f}"]
+        return [f"POS {self.fixed(self.position, 1)}", f"TGT {self.fixed(self.target, 1)}"]
 
 
 class ChainSourceModel(_Streaming):
