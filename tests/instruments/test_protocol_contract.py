@@ -24,6 +24,7 @@ from mirrorlab.instruments.ultrasonic_tracker.model import UltrasonicTrackerMode
 from mirrorlab.instruments.virtual_lab.line_sensor.detector import OpticalDetector
 
 from tests.raw_line import RawClient
+from tests.support import REPO
 
 MODELS: dict[str, Callable[[], LineSimulator]] = {
     "angle_source": AngleSourceModel,
@@ -90,6 +91,73 @@ def test_a_command_takes_its_documented_arguments_and_not_one_more(name: str, co
     assert not reply.startswith(("ERR E01", "ERR E02")), (command, reply)
     if command.split()[0] not in VARIADIC:
         assert model.execute(command + " x")[-1].startswith("ERR E02 "), command
+
+
+
+# -- integer arguments: exactly those each page lists ---------------------------------------------------------
+#: Well-formed uses of the commands whose integer arguments only a fault names (beside :data:`VALID`).
+MORE_EXAMPLES: dict[str, list[str]] = {
+    "ultrasonic_tracker": ["SIM:FAULT SERVOGAIN 1 0.5"],
+    "line_tracker": ["SIM:FAULT BACKGROUND 1 10", "SIM:FAULT MULTI 2"],
+    "mirror_gimbal": ["SIM:FAULT BACKGROUND 1 10", "SIM:FAULT MULTI 2"],
+}
+NOT_AN_INTEGER = re.compile(r"ERR E02 ([A-Z]+: )?not an integer: 1\.5")
+NUMERIC = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+
+
+def listed_integer_arguments(name: str) -> list[str]:
+    """The syntaxes the page of simulator ``name`` lists after ``Integer arguments:`` (on a page of several
+    devices, in the section whose heading names its kind); every ``<...>`` in them is an integer."""
+    text = (REPO / "docs" / "instruments" / PAGES[name]).read_text()
+    sections = [part for part in re.split(r"(?m)^(?=## )", text) if "\nInteger arguments: " in part]
+    if len(sections) > 1:
+        sections = [part for part in sections if MODELS[name]().kind in part.splitlines()[0]]
+    (section,) = sections
+    (line,) = re.findall(r"(?m)^Integer arguments: (.*)$", section)
+    return re.findall(r"`([^`]+)`", line.split(";")[0])
+
+
+def integer_positions(name: str) -> list[tuple[str, int]]:
+    """(example command, index of an integer word in it) for every argument the page lists as an integer."""
+    examples = VALID[name] + MORE_EXAMPLES.get(name, [])
+    found = []
+    for syntax in listed_integer_arguments(name):
+        words = syntax.split()
+        prefix = [w.upper() for w in words if not w.startswith("<")]
+        assert prefix == [w.upper() for w in words[:len(prefix)]], syntax   # the integers after the words
+        example = next((c for c in examples if [w.upper() for w in c.split()[:len(prefix)]] == prefix
+                        and len(c.split()) >= len(words)), None)
+        assert example is not None, f"{PAGES[name]}: no example of {syntax!r} to try"
+        found += [(example, i) for i in range(len(prefix), len(words))]
+    return found
+
+
+def with_word(command: str, index: int, word: str) -> str:
+    words = command.split()
+    return " ".join([*words[:index], word, *words[index + 1:]])
+
+
+def reply_to(name: str, command: str) -> str:
+    model = MODELS[name]()
+    model.fast = True
+    return model.execute(command)[-1]
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_the_integer_arguments_a_page_lists_refuse_a_decimal(name: str) -> None:
+    """Each argument under *Integer arguments* answers ``1.5`` with ``ERR E02 not an integer``; every other
+    numeric argument of the examples takes it as a number (perhaps out of range, never "not an integer")."""
+    integers = integer_positions(name)
+    assert any(c.startswith("SIM:SEED") for c, _ in integers), "SIM:SEED <n> is every simulator's integer"
+    for command, index in integers:
+        reply = reply_to(name, with_word(command, index, "1.5"))
+        assert NOT_AN_INTEGER.fullmatch(reply), (with_word(command, index, "1.5"), reply)
+    for command in VALID[name] + MORE_EXAMPLES.get(name, []):
+        for index, word in enumerate(command.split()):
+            if index and NUMERIC.fullmatch(word) and (command, index) not in integers:
+                reply = reply_to(name, with_word(command, index, "1.5"))
+                assert "not an integer" not in reply, (f"{PAGES[name]} does not list it as an integer",
+                                                       with_word(command, index, "1.5"), reply)
 
 
 # -- served: any bytes, and the end of a stream -------------------------------------------------------------
