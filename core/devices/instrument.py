@@ -518,9 +518,14 @@ class SerialInstrument(Instrument):
         return True
 
     def on_unsolicited(self, line: str) -> None:
-        """Handle a ``!`` line (reader thread). ``!ERR`` is reported; subclasses add stream lines."""
+        """Handle a ``!`` line (reader thread). ``!ERR`` is reported, and so is ``!OVF <n>`` (the device dropped
+        ``n`` stream lines: the host read too slowly, or the line cannot carry the stream); subclasses add
+        stream lines."""
         if line.startswith("ERR"):
             self.report("warning", "device_fault", f"{self.device_name} reports {line}")
+        elif line.startswith("OVF "):
+            self.report("warning", "device_overflow", f"{self.device_name} dropped {line[4:]} stream lines: they "
+                        "were read too slowly, or the serial line is too slow for the stream (lower its rate)")
 
     def connect(self) -> None:
         if self.client is not None and self.client.alive:

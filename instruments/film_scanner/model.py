@@ -109,6 +109,7 @@ class FilmScannerModel(SeededNoise, LineSimulator):
         return flags
 
     def cmd_STAT_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "STAT?")
         yield f"OK {self.state} {','.join(sorted(self._flags())) or '-'}"
 
     def fault_names(self) -> tuple[str, ...]:
@@ -225,9 +226,10 @@ class FilmScannerModel(SeededNoise, LineSimulator):
 
     def cmd_HEADTHR(self, args: list[str]) -> Lines:
         self.expect(args, 3, "HEADTHR <sl1> <sl2> <skip>")
+        # all three are read before any is set: a refused command changes nothing
         sl1, sl2 = int(self.number(args[0], 0, 255)), int(self.number(args[1], 0, 255))
-        self.head_sl1, self.head_sl2 = sl1, sl2
-        self.head_skip = int(self.number(args[2], 0, 384))
+        skip = int(self.number(args[2], 0, 384))
+        self.head_sl1, self.head_sl2, self.head_skip = sl1, sl2, skip
         yield "OK"
 
     def cmd_CLAMP(self, args: list[str]) -> Lines:
@@ -350,13 +352,14 @@ class FilmScannerModel(SeededNoise, LineSimulator):
         shift.
         """
         c = self.carrier
-        out = [f"POS {c.film_um / 1000:.5f} {c.carrier_um / 1000:.5f} {c.pointer} {c.film_steps} {c.clamp}"]
+        film_mm, carrier_mm = self.fixed(c.film_um / 1000, 5), self.fixed(c.carrier_um / 1000, 5)
+        out = [f"POS {film_mm} {carrier_mm} {c.pointer} {c.film_steps} {c.clamp}"]
         out += [f"FRAME {k} {self.film.frame_top_mm(k):.4f}" for k in range(self.film.n_frames)]
-        out += [f"MARKER {m.frame} {m.ident} {m.x_mm:.5f} {m.y_mm:.5f} {m.col_px:.3f} {m.row_px:.3f} "
+        out += [f"MARKER {m.frame} {m.ident} {self.fixed(m.x_mm, 5)} {self.fixed(m.y_mm, 5)} {m.col_px:.3f} {m.row_px:.3f} "
                 f"{m.radius_mm:.4f}" for m in self.film.markers]
         n = len(self.last_scan)
-        ys = " ".join(f"{y:.5f}" for y, _ in self.last_scan) or "-"
-        dxs = " ".join(f"{dx:.5f}" for _, dx in self.last_scan) or "-"
+        ys = " ".join(self.fixed(y, 5) for y, _ in self.last_scan) or "-"
+        dxs = " ".join(self.fixed(dx, 5) for _, dx in self.last_scan) or "-"
         out += [f"SCAN {n} {ys}", f"SCANDX {n} {dxs}"]
         out += self.fault_lines()
         return out

@@ -84,8 +84,9 @@ class LineTrackerModel(ScannedLines, LineSimulator):
 
     # -- simulation --------------------------------------------------------------------------------
     def handle(self, line: str) -> Lines:
-        words = line.split()
-        if words and hasattr(self.detector, self.handler_name(words[0])):
+        words = self.words(line)
+        name = self.handler_name(words[0]) if words else ""
+        if name and hasattr(self.detector, name):
             return self.detector.handle(words)
         return super().handle(line)
 
@@ -126,8 +127,9 @@ class LineTrackerModel(ScannedLines, LineSimulator):
         t = self.clock_ms / 1000.0
         v = self.world.target_position(t) - self.mount
         along, _ = axis_angles(v, self.forward)
-        half = math.asin(min(1.0, self.world.spheres[0].radius / float(np.linalg.norm(v))))
+        distance, radius = float(np.linalg.norm(v)), self.world.spheres[0].radius
+        half = math.pi / 2 if distance <= radius else math.asin(radius / distance)   # reaching the detector: the field
         size = (math.tan(float(along) + half) - math.tan(float(along) - half)) * FOCAL_MM / PITCH_MM
         return [f"TIME {int(self.clock_ms)}",
-                f"TARGET {math.degrees(float(along)):.4f} {float(angle_to_pixel(along)):.3f}",
+                f"TARGET {self.fixed(math.degrees(float(along)), 4)} {float(angle_to_pixel(along)):.3f}",
                 f"SIZE {size:.2f}", *self.fault_lines()]

@@ -230,7 +230,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         if self._stream_on:
             k = f"{mark.m:.1f}" if valid else "-"
             e = f"{mark.m - 255.0:.1f}" if valid else "-"
-            self.pending.append(f"!G {ms} {axis.name} {k} {e} {math.degrees(axis.state.mirror):.3f}")
+            self.pending.append(f"!G {ms} {axis.name} {k} {e} {self.fixed(math.degrees(axis.state.mirror), 3)}")
 
     def _drive_axis(self, axis: Axis, period: float) -> None:
         if axis.mode in ("TRACK", "POS"):
@@ -268,7 +268,7 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
 
     # -- commands (§4.5) ---------------------------------------------------------------------------
     def handle(self, line: str) -> Lines:
-        words = line.split()
+        words = self.words(line)
         head = words[0].upper() if words else ""
         if len(head) > 2 and head[1] == ":" and head[0] in "HV" and not head.startswith("SIM"):
             detector = self.axes[head[0]].detector
@@ -311,12 +311,13 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
                                       f"{math.degrees(hi):g} deg")
         axis.setpoint = math.radians(deg)
         self._set_mode(axis, "POS")
-        yield f"OK {deg:.3f}"
+        yield f"OK {self.fixed(deg, 3)}"
 
     def cmd_ANG_Q(self, args: list[str]) -> Lines:
         self.expect(args, 1, "ANG? <H|V>")
         axis = self._axis(args[0])
-        yield f"OK {math.degrees(axis.state.mirror):.3f} {math.degrees(axis.state.detector_angle(axis.params)):.3f}"
+        yield (f"OK {self.fixed(math.degrees(axis.state.mirror), 3)} "
+               f"{self.fixed(math.degrees(axis.state.detector_angle(axis.params)), 3)}")
 
     def cmd_SENS_Q(self, args: list[str]) -> Lines:
         self.expect(args, 1, "SENS? <H|V>")
@@ -380,14 +381,13 @@ class MirrorGimbalModel(ScannedLines, LineSimulator):
         t = self.clock_ms / 1000.0
         w = self.world
         target = w.target_position(t)
-        out = [f"TIME {int(self.clock_ms)}", "TARGET " + " ".join(f"{x:.2f}" for x in target)]
+        out = [f"TIME {int(self.clock_ms)}", "TARGET " + " ".join(self.fixed(x, 2) for x in target)]
         for name, angle in zip(AXES, w.target_angles(t)):
             a = self.axes[name]
-            out.append(f"AXIS {name} {math.degrees(angle):.4f} {math.degrees(a.state.mirror):.4f} "
-                       f"{math.degrees(a.state.detector_angle(a.params)):.4f} "
-                       f"{math.degrees(a.state.mirror_rate):.4f} {a.mode}")
+            angles = (angle, a.state.mirror, a.state.detector_angle(a.params), a.state.mirror_rate)
+            out.append(f"AXIS {name} {' '.join(self.fixed(math.degrees(x), 4) for x in angles)} {a.mode}")
         normal = mirror_normal(self.axes["H"].state.mirror, self.axes["V"].state.mirror, w.camera_direction)
-        out.append("NORMAL " + " ".join(f"{x:.6f}" for x in normal))
+        out.append("NORMAL " + " ".join(self.fixed(x, 6) for x in normal))
         inside = image_in_mirror(w.camera, target, w.mirror_centre, normal, w.mirror_size, w.spheres[0].radius)
         out.append(f"INMIRROR {int(inside)}")
         return out + self.fault_lines()

@@ -49,11 +49,19 @@ class _Streaming(LineSimulator, ABC):
     def stream_lines(self) -> list[str]:
         lines = []
         period = 1000.0 / self.rate_hz
-        self._next_ms = max(self._next_ms, self.clock_ms - 100 * period)  # after a pause, do not flood
+        behind = self.clock_ms - 100 * period - self._next_ms
+        if behind > 0:  # after a pause, do not flood: the older samples are lost, and counted (!OVF)
+            lost = int(behind // period) + 1
+            self.skip_samples(lost)
+            self.lost_lines += lost
+            self._next_ms += lost * period
         while self._next_ms <= self.clock_ms:
             lines.append(f"!{self.tag} {int(round(self._next_ms * 1000))} {self.sample(self._next_ms)}")
             self._next_ms += period
         return lines
+
+    def skip_samples(self, n: int) -> None:
+        """``n`` samples are lost (not sent); a model whose samples advance something advances it."""
 
     def fault_names(self) -> tuple[str, ...]:
         return ()
@@ -76,7 +84,7 @@ class AngleSourceModel(_Streaming):
         return str(int(round(self.amplitude_urad * math.sin(2 * math.pi * self.frequency_hz * ms / 1000.0))))
 
     def cmd_WAVE(self, args: list[str]) -> Lines:
-        self.expect(args, 2, "WAVE <amplitude µrad> <frequency Hz>")
+        self.expect(args, 2, "WAVE <amplitude urad> <frequency Hz>")
         self.amplitude_urad = int(self.number(args[0], 0, 3_141_593))
         self.frequency_hz = self.number(args[1], 0, 100, integer=False)
         yield f"OK {self.amplitude_urad} {self.frequency_hz:g}"
@@ -115,29 +123,32 @@ class ActuatorModel(_Streaming):
         return str(int(round(self.position)))
 
     def cmd_TGT(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "TGT <µrad>")
+        self.expect(args, 1, "TGT <urad>")
         self.target = self.number(args[0], -self.limit_urad, self.limit_urad)
         self.holding = False
         yield f"OK {int(self.target)}"
 
     def cmd_TGT_Q(self, args: list[str]) -> Lines:
-        yield f"OK {int(self.target)}"
+        self.expect(args, 0, "TGT?")
+        yield f"OK {int(round(self.target))}"   # after HOLD the target is the position: rounded as HOLD and POS?
 
     def cmd_SPEED(self, args: list[str]) -> Lines:
-        self.expect(args, 1, "SPEED <µrad/s>")
+        self.expect(args, 1, "SPEED <urad/s>")
         self.speed = self.number(args[0], 1, 100_000_000, integer=False)
         yield f"OK {self.speed:g}"
 
     def cmd_HOLD(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "HOLD")
         self.target = self.position
         self.holding = True
         yield f"OK {int(round(self.position))}"
 
     def cmd_POS_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "POS?")
         yield f"OK {int(round(self.position))}"
 
     def truth_lines(self) -> list[str]:
-        return [f"POS {self.position:.1f}", f"TGT {self.target:.1f}"]
+        return [f"POS {self.fixed(self.position, 1)}", f"TGT {self.fixed(self.target, 1)}"]
 
 
 class ChainSourceModel(_Streaming):
@@ -180,10 +191,15 @@ class ChainSourceModel(_Streaming):
         um = np.rint(self.positions[self.frame, self.selected] * 1000.0).ravel()
         fields = " ".join("nan" if v != v else str(int(v)) for v in um)
         line = f"{self.frame} {fields}"
-        self.frame = (self.frame + 1) % len(self.positions)
+        self.skip_samples(1)
         return line
 
+    def skip_samples(self, n: int) -> None:
+        """The recording plays on while samples are lost: their frames are skipped."""
+        self.frame = (self.frame + n) % len(self.positions)
+
     def cmd_JOINTS_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "JOINTS?")
         yield "OK " + " ".join(self.names)
 
     def cmd_SEL(self, args: list[str]) -> Lines:
@@ -196,9 +212,11 @@ class ChainSourceModel(_Streaming):
         yield f"OK {len(self.selected)}"
 
     def cmd_SEL_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "SEL?")
         yield "OK " + " ".join(self.names[i] for i in self.selected)
 
     def cmd_FRAMES_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "FRAMES?")
         yield f"OK {len(self.positions)} {self.frame_rate:g}"
 
     def cmd_SEEK(self, args: list[str]) -> Lines:

@@ -39,6 +39,8 @@ COMPUTE_S = 0.014                # gradient, step and output: with these, one cy
 LOST_CYCLES = 3
 KH_DEFAULT = 200.0               # step law h = min(h0, Kh / S): counts x deg; calibrated (see experiments)
 PSI_QUANTUM = math.radians(1.44)   # 0.1 us of the 10 MHz counter chain at 40 kHz
+PSI_STEPS = 62                     # quanta in the 0...90 deg of PSI: 89.28 deg at most
+TEMP_RANGE = (-50, 100)          # SIM:FAULT TEMP, degC: air the tracker can work in
 REVERB_S = (9.7e-3, 13.1e-3, 16.9e-3, 22.3e-3, 27.8e-3)   # room echoes for LEFTOVER, s
 
 
@@ -159,13 +161,15 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
             if len(args) - 1 != len(names):
                 raise CommandError(*fault_usage(name, names))
             for text, what in zip(args[1:], names):
-                value = self.number(text, -1e6, 1e6, integer=False)
+                value = self.number(text, -1e6, 1e6, integer=what == "axis")
                 if what == "axis" and value not in (1, 2):
                     raise CommandError("E03", "SERVOGAIN axis must be 1 or 2")
                 if what in ("range_mm", "amp", "decay_ms", "sigma", "factor", "m_per_s", "gain") and value < 0:
                     raise CommandError("E03", f"{name} {what} must not be negative")
+                if what == "celsius" and not TEMP_RANGE[0] <= value <= TEMP_RANGE[1]:
+                    raise CommandError("E03", f"TEMP {text} outside {TEMP_RANGE[0]}..{TEMP_RANGE[1]} degC (air)")
             if name == "SERVOGAIN":
-                self.faults[f"SERVOGAIN {int(float(args[1]))}"] = args[2:]
+                self.faults[f"SERVOGAIN {int(args[1])}"] = args[2:]
                 yield "OK"
                 return
         yield from super().cmd_SIM_FAULT(args)
@@ -215,6 +219,8 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         for k, sphere in enumerate(self.world.spheres):
             v = self.frame @ (sphere.path.position(t) - self.mount)
             r = float(np.linalg.norm(v))
+            if r <= sphere.radius:
+                continue   # a sphere that reaches the array has no direction to echo from
             amp = sphere.radius / TARGET_RADIUS
             if k == 0 and flat:                      # a flat target echoes only near specular geometry
                 az, el = math.radians(float(flat[0])), math.radians(float(flat[1]))
@@ -231,7 +237,7 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
             dirs.append(np.array([math.cos(e) * math.cos(a), math.sin(e), -math.cos(e) * math.sin(a)]))
             ranges.append(r)
             amps.append(amp)
-        return np.array(dirs), np.array(ranges), np.array(amps)
+        return np.array(dirs).reshape(-1, 3), np.array(ranges), np.array(amps)
 
     def _emission(self, t: float, beam: str, period: float) -> tuple[np.ndarray, np.ndarray]:
         """Arrivals (s after emission) and counts heard in the window ``period`` after an emission at ``t``."""
@@ -318,7 +324,7 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         self.track_flags = flags
         if self._stream_on:
             th = np.degrees(self.theta)
-            self.pending.append((t + used, f"!TRK {int(round((t + used) * 1000))} {th[0]:.3f} {th[1]:.3f} "
+            self.pending.append((t + used, f"!TRK {int(round((t + used) * 1000))} {self.fixed(th[0], 3)} {self.fixed(th[1], 3)} "
                                            f"{self.last_pressure:.1f} {''.join(sorted(flags)) or '-'}"))
         return used
 
@@ -328,6 +334,7 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
             raise CommandError("E04", "busy: tracking; send TRACK OFF first")
 
     def cmd_STAT_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "STAT?")
         names = {"L": "LOST", "E": "ENDSTOP", "Q": "QUIET"}
         flags = sorted(self.flags | {names[f] for f in self.track_flags})
         yield f"OK {self.state} {','.join(flags) or '-'}"
@@ -342,13 +349,15 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         yield from self.cmd_AIM_Q([])
 
     def cmd_AIM_Q(self, args: list[str]) -> Lines:
+        self.expect(args, 0, "AIM?")
         th = np.degrees(self.setpoint)
-        yield f"OK {th[0]:.4f} {th[1]:.4f}"
+        yield f"OK {self.fixed(th[0], 4)} {self.fixed(th[1], 4)}"
 
     def cmd_PSI(self, args: list[str]) -> Lines:
         self.expect(args, 1, "PSI <deg>")
         deg = self.number(args[0], 0.0, 90.0, integer=False)
-        self.psi = round(math.radians(deg) / PSI_QUANTUM) * PSI_QUANTUM
+        # the nearest quantum, but never beyond the 90 deg the command allows
+        self.psi = min(round(math.radians(deg) / PSI_QUANTUM), PSI_STEPS) * PSI_QUANTUM
         delta = math.asin(min(1.0, 2 * self.psi / (math.sqrt(3.0) * wavenumber(self.celsius) * PITCH)))
         yield f"OK {math.degrees(self.psi):.2f} {math.degrees(delta):.2f}"
 
@@ -404,6 +413,12 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         self.rand_s = (lo / 1000.0, hi / 1000.0)
         yield "OK"
 
+    def cmd_STREAM(self, args: list[str]) -> Lines:
+        """``STREAM ON|OFF``; off, the line of the cycle in progress is not sent either (no line after the ``OK``)."""
+        yield from super().cmd_STREAM(args)
+        if not self._stream_on:
+            self.pending = []
+
     def cmd_TRACK(self, args: list[str]) -> Lines:
         on = self.keyword(args, "TRACK ON|OFF") == "ON"
         if on and not self.tracking:
@@ -449,9 +464,9 @@ class UltrasonicTrackerModel(InWorld, SeededNoise, LineSimulator):
         v = self.frame @ (self.world.target_position(t) - self.mount)
         u0 = np.array([math.cos(self.theta[0]) * math.cos(self.theta[1]), math.sin(self.theta[1]),
                        -math.sin(self.theta[0]) * math.cos(self.theta[1])])
-        error = math.degrees(math.acos(float(np.clip(np.dot(u0, v / np.linalg.norm(v)), -1, 1))))
+        error = math.degrees(math.acos(float(np.clip(np.dot(u0, v / max(float(np.linalg.norm(v)), 1e-9)), -1, 1))))
         th = np.degrees(self.theta)
         return [f"TIME {int(self.clock_ms)}",
-                f"TARGET {math.degrees(t1):.4f} {math.degrees(t2):.4f} {np.linalg.norm(v):.1f}",
-                f"PLATFORM {th[0]:.4f} {th[1]:.4f}", f"ERROR {error:.4f}",
+                f"TARGET {self.fixed(math.degrees(t1), 4)} {self.fixed(math.degrees(t2), 4)} {np.linalg.norm(v):.1f}",
+                f"PLATFORM {self.fixed(th[0], 4)} {self.fixed(th[1], 4)}", f"ERROR {error:.4f}",
                 f"SOUND {speed_of_sound(self.celsius) / 1000:.2f}", *self.fault_lines()]

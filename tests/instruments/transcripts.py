@@ -2,7 +2,7 @@
 
 A transcript is a plain fenced block of lines ``> command`` (host to device), ``< reply`` (device
 to host) and ``… N ms`` (time passing). :func:`replay_on_model` checks a simulator against it in
-process; :class:`ScriptedDevice` plays the device side byte for byte to a real driver, so the
+process, :func:`replay_on_server` over a real connection in raw bytes; :class:`ScriptedDevice` plays the device side byte for byte to a real driver, so the
 driver's wire format is pinned independently of the simulator (:func:`scripted_driver` connects
 one to it and checks the whole script was played).
 """
@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 from mirrorlab.core.devices import Instrument
 from mirrorlab.core.devices.simulator import LineSimulator
 
+from tests.raw_line import RawClient
 from tests.support import REPO
 from tests.test_docs import blocks
 
@@ -127,3 +128,29 @@ def scripted_driver(script: list[str], cls: type[I], label: str,
         device.close()
     assert device.error is None, device.error
     assert device.done.is_set()
+
+
+def _sent_bytes(line: str) -> bytes:
+    r"""The bytes of a ``>`` line: ``>`` alone is an empty line, ``\xNN`` one byte."""
+    text = line[2:] if line.startswith("> ") else ""
+    return re.sub(rb"\\x([0-9a-f]{2})", lambda m: bytes([int(m[1], 16)]), text.encode("ascii")) + b"\n"
+
+
+def replay_on_server(url: str, lines: list[str]) -> None:
+    r"""Send every ``>`` line's bytes to a served simulator (``>`` alone: an empty line; ``\xNN``: one byte) and
+    assert it answers exactly the ``<`` lines after it, byte for byte, and nothing else (a ``PING`` after the
+    last must be answered next)."""
+    steps: list[tuple[bytes, list[str]]] = []
+    for line in lines:
+        if line == ">" or line.startswith("> "):
+            steps.append((_sent_bytes(line), []))
+        elif line.startswith("< "):
+            steps[-1][1].append(line[2:])
+        else:
+            raise AssertionError(f"not a transcript line: {line!r}")
+    with RawClient(url) as client:
+        for sent, expected in steps:
+            client.send(sent)
+            got = [client.line() for _ in expected]
+            assert got == expected, f"{sent!r}: got {got}, transcript says {expected}"
+        assert client.ask("PING") == ["OK PONG"]

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from mirrorlab.core.devices import CommandError, LineSimulator
 from numpy.typing import ArrayLike, NDArray
 
 from ..simulators import fault_usage
@@ -62,6 +63,8 @@ class OpticalFaults:
     saturate: bool = False
 
 
+#: The optical fault arguments that are integers (the others are numbers).
+INTEGER_ARGUMENTS = frozenset({"profile_id", "n"})
 #: The optical faults of §3.5 and their arguments (``SIM:FAULT <name> <args>``).
 OPTICAL_FAULTS: dict[str, tuple[str, ...]] = {
     "BACKGROUND": ("profile_id", "gain"),
@@ -87,9 +90,9 @@ def check_optical_fault(name: str, values: list[str]) -> tuple[str, str] | None:
     if len(values) != len(names):
         return fault_usage(name, names)
     try:
-        numbers = [float(v) for v in values]
-    except ValueError:
-        return "E02", f"{name}: not a number in {' '.join(values)}"
+        numbers = [LineSimulator.number(v, -1e6, 1e6, integer=n in INTEGER_ARGUMENTS) for v, n in zip(values, names)]
+    except CommandError as exc:
+        return exc.code, f"{name}: {exc.text}"
     if any(x < 0 for x in numbers):
         return "E03", f"{name} values must not be negative"
     if name == "BACKGROUND" and int(numbers[0]) not in BACKGROUND_IDS:
@@ -111,7 +114,7 @@ def optical_faults(faults: dict[str, list[str]]) -> OpticalFaults:
 
     bg, tp = faults.get("BACKGROUND"), faults.get("TWOPEAK")
     return OpticalFaults(
-        background=(int(float(bg[0])), float(bg[1])) if bg else None,
+        background=(int(bg[0]), float(bg[1])) if bg else None,
         multi=int(value("MULTI")),
         twopeak=(math.radians(float(tp[0])), float(tp[1])) if tp else None,
         range_m=value("RANGE"), sidelight=value("SIDELIGHT"), defocus_px=value("DEFOCUS"),
@@ -177,7 +180,8 @@ def detector_projection(world: TrackingWorld, t: float, axis: str, angle: float,
         along, across = (float(h), float(v)) if axis == "H" else (float(v), float(h))
         if abs(across) > FIELD_ACROSS / 2:
             continue
-        half = math.asin(min(1.0, sphere.radius / distance))
+        # a sphere that reaches the detector fills its field
+        half = math.pi / 2 if distance <= sphere.radius else math.asin(sphere.radius / distance)
         copies = [(along - angle, level)]
         if k == 0 and faults.twopeak is not None:
             sep, ratio = faults.twopeak
