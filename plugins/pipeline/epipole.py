@@ -24,6 +24,9 @@ __all__ = ["EpipoleEstimate", "estimate_epipole"]
 
 FloatArray = NDArray[np.float64]
 
+#: distances (candidates x combinations) scored at once: a chunk makes about a dozen float64 temporaries of 8 MB
+_SCORE_BLOCK = 1 << 20
+
 
 @dataclass(frozen=True)
 class EpipoleEstimate:
@@ -107,7 +110,9 @@ def estimate_epipole(real: ArrayLike, virtual: ArrayLike, *, tol: float = 1.0, s
         raise EpipoleError("every direct/mirror line is parallel to the others; cannot locate the epipole")
     cand /= np.linalg.norm(cand, axis=1)[:, None]
     best = None
-    for chunk in np.array_split(cand, max(1, len(cand) // 256)):
+    # candidates scored in chunks of about _SCORE_BLOCK distances: memory stays bounded however many frames
+    per_chunk = max(1, _SCORE_BLOCK // len(p))
+    for chunk in np.array_split(cand, max(1, -(-len(cand) // per_chunk))):
         count = (_distance(p, q, chunk) < tol).sum(axis=1)
         i = int(np.argmax(count))
         if best is None or count[i] > best[0]:
@@ -118,7 +123,7 @@ def estimate_epipole(real: ArrayLike, virtual: ArrayLike, *, tol: float = 1.0, s
         inl = _distance(p, q, e[None])[0] < tol
         if inl.sum() < 2:
             break
-        e = np.linalg.svd(lines[inl])[2][-1]
+        e = np.linalg.svd(lines[inl], full_matrices=False)[2][-1]  # thin: (n, 3) in, no n x n factor
     d = _distance(p, q, e[None])[0]
     inl = d < tol
     if len(np.unique(frame[inl])) < 2:

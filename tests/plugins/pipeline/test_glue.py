@@ -3,6 +3,8 @@ pairing + tracking carried to (F, T, 2) arrays, marker labelling."""
 
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -27,6 +29,7 @@ from mirrorlab.plugins.pipeline import (
     split_views,
 )
 from mirrorlab.plugins.pipeline.algorithms import LabSurvey, RSSRMarkers, SurveyError
+from mirrorlab.plugins.pipeline.epipole import _SCORE_BLOCK
 from mirrorlab.plugins.tracking import track
 
 from tests.plugins.photogrammetry.bounds import normal_condition
@@ -240,3 +243,24 @@ def test_estimate_epipole_property(ex: float, ey: float, front: bool, seed: int)
     truth /= np.linalg.norm(truth)
     assert np.abs(est.epipole - truth).max() <= bound
     assert est.inliers >= 18
+
+
+def test_estimate_epipole_memory_does_not_grow_with_the_square_of_the_pairs() -> None:
+    """A long recording (8000 frames, 16 000 true pairs): the refinement and the scoring never hold an
+    inliers x inliers or candidates x combinations array (an n x n float64 factor alone would be 2 GB); the
+    peak stays a fixed block plus arrays linear in the combinations."""
+    rng = np.random.default_rng(3)
+    e = np.array([900.0, -400.0])
+    p = rng.uniform(0, 600, (8000, 2, 2))
+    q = p + rng.uniform(0.1, 0.5, (8000, 2, 1)) * (e - p)
+    combinations = p.shape[0] * p.shape[1] * q.shape[1]
+    tracemalloc.start()
+    try:
+        est = estimate_epipole(p, q, samples=200, tol=1e-3)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert est.inliers == 16_000
+    n_by_n = est.inliers**2 * 8
+    # the scoring block's temporaries (a dozen float64 arrays of _SCORE_BLOCK) and ~40 float64 per combination
+    assert peak < 12 * 8 * _SCORE_BLOCK + 40 * 8 * combinations < n_by_n / 4, (peak, n_by_n)
