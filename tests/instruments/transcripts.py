@@ -2,9 +2,10 @@
 
 A transcript is a plain fenced block of lines ``> command`` (host to device), ``< reply`` (device
 to host) and ``… N ms`` (time passing). :func:`replay_on_model` checks a simulator against it in
-process, :func:`replay_on_server` over a real connection in raw bytes; :class:`ScriptedDevice` plays the device side byte for byte to a real driver, so the
-driver's wire format is pinned independently of the simulator (:func:`scripted_driver` connects
-one to it and checks the whole script was played).
+process, :func:`replay_on_server` over a real connection in raw bytes; :class:`ScriptedDevice`
+plays the device side byte for byte to a real driver, so the driver's wire format is pinned
+independently of the simulator (:func:`scripted_driver` connects one to it and checks the whole
+script was played).
 """
 
 from __future__ import annotations
