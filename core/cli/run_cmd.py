@@ -14,6 +14,7 @@ from ..batch.options import add_cluster_options, positive_int
 from ..errors import Problem, ValidationError
 from ..recipes import Recipe, load_recipe, run_analysis, run_recipe
 from ..session import Session
+from ..store.integrity import instrument_failures
 from .options import existing_path
 from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice, group_contents, plural
 from .progress import progress_bar
@@ -148,10 +149,12 @@ def demo(args: argparse.Namespace) -> int:
 
 def print_summary(path: Path, allow_empty: bool | None = None) -> int:
     """Print what the session holds; return the exit code. After a recording (``allow_empty`` not
-    ``None``) an instrument that recorded no sample at all (its source delivered nothing) is an
-    error (1), or with ``allow_empty`` a warning (0)."""
+    ``None``) an instrument that failed while recording (its reconnect budget spent) is an error (1),
+    and so is one that recorded no sample at all (its source delivered nothing), or with
+    ``allow_empty`` a warning (0)."""
     with Session.open(path) as s:
         info = s.describe()
+        failures = [] if allow_empty is None else instrument_failures(s.log())
     print(f"session {info['attributes']['session_id']} [{info['attributes']['status']}] -> {path}")
     for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
         for name, st in inst["streams"].items():
@@ -161,12 +164,14 @@ def print_summary(path: Path, allow_empty: bool | None = None) -> int:
         print(f"  {group}: {group_contents(g)}")
     for r in info["results"]:
         print(f"  {r['path']}: {r['status']} {r['error']}")
+    for failure in failures:  # the recording went on without it: what it recorded is kept, the rest missing
+        print(f"mirrorlab: error: {failure}; {path} keeps what it recorded before", file=sys.stderr)
     empty = [label for label, inst in info["instruments"].items()
              if inst["streams"] and not any(st["samples"] for st in inst["streams"].values())]
     if allow_empty is None or not empty:
-        return 0
+        return 1 if failures else 0
     message = (f"{', '.join(empty)} recorded no sample: the source delivered nothing in the time recorded (e.g. a "
                f"real-clock film scanner takes seconds per frame: record longer); {path} keeps the empty recording")
     print(f"mirrorlab: warning: {message}" if allow_empty else
           f"mirrorlab: error: {message}; add --allow-empty to accept an empty recording", file=sys.stderr)
-    return 0 if allow_empty else 1
+    return 0 if allow_empty and not failures else 1

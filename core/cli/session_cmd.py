@@ -34,6 +34,9 @@ def add(sub: argparse._SubParsersAction) -> None:
         c = ssub.add_parser(name, help=helptext)
         c.add_argument("file", type=existing_path, help="session file (.h5)")
         c.add_argument("--json", action="store_true", help="machine-readable output")
+        if func is check:
+            c.add_argument("--data", action="store_true",
+                           help="also read every recorded sample and verify its checksum (slow for long recordings)")
         c.set_defaults(func=func)
     c = ssub.add_parser("close", help="mark a session closed (or --aborted), repairing a crashed file")
     c.add_argument("file", type=existing_path, help="session file (.h5)")
@@ -133,7 +136,7 @@ def tree(args: argparse.Namespace) -> int:
 
 
 def check(args: argparse.Namespace) -> int:
-    report = files.check(args.file)
+    report = files.check(args.file, data=args.data)
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     else:
@@ -143,6 +146,8 @@ def check(args: argparse.Namespace) -> int:
             print(f"  - {p}")
         for name, st in report.streams.items():
             print(f"  {name}: {st['samples']} samples")
+        if report.checksums is False:
+            print("  (written without checksums: the samples were read but cannot be verified)")
     return 0 if report.complete else 1
 
 

@@ -28,7 +28,9 @@ from typing import Any
 import h5py
 
 from ..errors import DamagedFileError, MirrorlabError, SessionError
-from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, required_root_attrs, run_status
+from . import integrity
+from .integrity import READ_ERRORS
+from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, read_log, required_root_attrs, run_status
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
 OPEN_FOR_WRITE = "file is already open for write"
@@ -39,9 +41,6 @@ OPEN_FOR_WRITE = "file is already open for write"
 #: yet still let a reader ride over a writer's half-written metadata.
 SWMR_READ_ATTEMPTS = 20
 
-#: What h5py raises while reading a damaged file: OSError / RuntimeError from the library, KeyError
-#: for an object it cannot open, ValueError (UnicodeDecodeError, JSONDecodeError) for garbled text.
-READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError)
 
 _ADVICE = {
     errno.EACCES: "check the permissions of the file and its folder (`ls -l`) or use a folder you can write to",
@@ -235,6 +234,8 @@ class CheckReport:
     writer: str | None = None
     problems: list[str] = field(default_factory=list)
     streams: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: with ``check(data=True)``: whether the file has checksums to verify (``None``: not asked)
+    checksums: bool | None = None
 
     @property
     def complete(self) -> bool:
@@ -244,11 +245,13 @@ class CheckReport:
     def as_dict(self) -> dict[str, Any]:
         return {"path": self.path, "status": self.status, "schema": self.schema,
                 "open_for_write": self.open_for_write, "writer": self.writer, "complete": self.complete,
-                "problems": self.problems, "streams": self.streams}
+                "problems": self.problems, "streams": self.streams, "checksums": self.checksums}
 
 
-def check(path: str | Path) -> CheckReport:
-    """Check a session file: schema, status, crash flags, stream consistency."""
+def check(path: str | Path, data: bool = False) -> CheckReport:
+    """Check a session file: schema, status, crash flags, stream consistency, instruments that failed while
+    recording, and that every object reads (:mod:`~mirrorlab.core.store.integrity`); with ``data``, also every
+    chunk of the checksummed streams."""
     f, crashed = open_readonly(path)
     report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path))
     with f, reading(path):
@@ -293,6 +296,18 @@ def check(path: str | Path) -> CheckReport:
                 if run_status(run) == INCOMPLETE:
                     report.problems.append(f"result /results/{algorithm}/{run_id} has no status: its writing "
                                            "was interrupted and its outputs may be partial; run it again")
+        try:
+            damaged = integrity.first_unreadable(f)
+            if not damaged:
+                report.problems += integrity.instrument_failures(read_log(f))
+                if data:
+                    report.checksums = integrity.has_checksums(f)
+                    report.problems += integrity.checksum_failures(f)
+        except READ_ERRORS as exc:  # inside an object whose ends read (e.g. the middle of /log)
+            damaged = str(exc)
+        if damaged:
+            report.problems.append(f"damaged: {damaged}; restore the file from a backup (`mirrorlab session export` "
+                                   "still reads the objects that are intact)")
     return report
 
 

@@ -22,10 +22,11 @@ refreshed before a dataset is read, so a reader sees what the recorder has flush
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import functools
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -103,7 +104,8 @@ class StoredArray:
         self.ndim: int = dataset.ndim
 
     def __getitem__(self, index: Any) -> Any:
-        return self._dataset[index]
+        with files.reading(self._dataset.file.filename):
+            return self._dataset[index]
 
     def __len__(self) -> int:
         return self.shape[0]
@@ -153,8 +155,34 @@ def dataset_unit(dataset: h5py.Dataset) -> str:
     return attr_str(dataset.parent, "time_unit" if dataset.name.endswith("/time") else "unit")
 
 
+R = TypeVar("R", bound=type)
+
+
+def _damage_reported(cls: R) -> R:
+    """Every public method and property of ``cls`` (whose instances have ``path``) reports what h5py raises
+    for a damaged object as one :class:`~mirrorlab.core.errors.DamagedFileError` naming the file
+    (:func:`files.reading`), never HDF5's text: a damaged object header or chunk is met only when read."""
+    def wrap(function: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(function)
+        def reported(self: Any, *args: Any, **kwargs: Any) -> Any:
+            with files.reading(self.path):
+                return function(self, *args, **kwargs)
+        return reported
+
+    for name, member in list(vars(cls).items()):
+        if name.startswith("_"):
+            continue
+        if isinstance(member, property) and member.fget is not None:
+            setattr(cls, name, property(wrap(member.fget), doc=member.__doc__))
+        elif callable(member):
+            setattr(cls, name, wrap(member))
+    return cls
+
+
+@_damage_reported
 class Reader:
-    """Read access to an open session ``file`` at ``path`` (``crashed``: opened through SWMR after a crash)."""
+    """Read access to an open session ``file`` at ``path`` (``crashed``: opened through SWMR after a crash);
+    a damaged object raises :class:`~mirrorlab.core.errors.DamagedFileError` when read."""
 
     def __init__(self, path: Path, file: h5py.File, crashed: bool = False) -> None:
         self.path = path

@@ -105,9 +105,11 @@ def create_stream(group: h5py.Group, spec: StreamSpec) -> h5py.Group:
         return g
     g = group.create_group(spec.name)
     chunk = spec.chunk_samples()
+    # Fletcher-32 checksums per chunk: a bit changed on disk or in a copy fails the read instead of
+    # being exported (``mirrorlab session check --data`` reads them all)
     g.create_dataset("data", shape=(0, *spec.shape), maxshape=(None, *spec.shape), dtype=spec.dtype,
-                     chunks=(chunk, *spec.shape))
-    g.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(max(chunk, 1024),))
+                     chunks=(chunk, *spec.shape), fletcher32=True)
+    g.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(max(chunk, 1024),), fletcher32=True)
     g.attrs["unit"] = spec.unit
     g.attrs["time_unit"] = "s"
     g.attrs["rate"] = float(spec.rate) if spec.rate else np.nan
