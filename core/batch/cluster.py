@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
@@ -19,6 +20,19 @@ CONNECT_TIMEOUT = 10.0
 
 class ClusterError(MirrorlabError):
     """The Dask scheduler could not be reached or has no workers."""
+
+
+def _reachable(scheduler: str) -> None:
+    """Raise :class:`ClusterError` at once if nothing listens at ``scheduler`` (``tcp://HOST:PORT``, as
+    :func:`~mirrorlab.core.batch.options.scheduler_address` gives it): Dask's client retries a refused
+    connection until its timeout, 10 s of waiting for an answer that cannot come."""
+    host, _, port = scheduler.partition("://")[2].rpartition(":")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        raise ClusterError(f"no Dask scheduler answers at {scheduler} ({exc.strerror or exc}); start one with "
+                           "`dask scheduler` and workers with `dask worker ADDRESS`, or drop --scheduler "
+                           "for a local cluster") from None
 
 
 @contextmanager
@@ -43,6 +57,7 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
     # Dask logs every worker and connection at INFO; a command's output keeps to its own errors.
     logging.getLogger("distributed").setLevel(logging.ERROR)
     if scheduler:
+        _reachable(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:

@@ -27,6 +27,46 @@ def cli_advice(option: str = "--out") -> Iterator[None]:
         raise SessionExistsError(exc.path, f"add --overwrite to replace it, or choose another {option}") from None
 
 
+def add_allow_port_url_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--allow-port-url``: a port may be any pyserial URL, not only a device path, ``socket://``,
+    ``loop://`` or ``rfc2217://`` (see :func:`mirrorlab.core.devices.transport.port_problem`)."""
+    parser.add_argument("--allow-port-url", action="store_true",
+                        help="accept any pyserial URL as an instrument's port (spy://, alt://, hwgrep://...: they "
+                             "can write files or open other devices); without it a port is a device path, "
+                             "socket://, loop:// or rfc2217://")
+
+
+def printable(text: str) -> str:
+    r"""``text`` with control characters escaped (``\x1b``), for text read from a file that reaches a
+    terminal: an ESC or OSC sequence in a file from elsewhere must not move the cursor, retitle the
+    window or hide what follows.
+
+    >>> printable("ana" + chr(27) + "]0;pwned" + chr(7) + " smith")
+    'ana\\x1b]0;pwned\\x07 smith'
+    """
+    return text.translate(_ESCAPES)
+
+
+def escaped(data: Any) -> Any:
+    r"""``data`` (nested dicts and lists, e.g. :meth:`Session.describe`) with every text, keys too,
+    :func:`printable`.
+
+    >>> escaped({"operator": "x" + chr(27) + "[2J", "n": [1, "a" + chr(10)]})
+    {'operator': 'x\\x1b[2J', 'n': [1, 'a\\x0a']}
+    """
+    if isinstance(data, str):
+        return printable(data)
+    if isinstance(data, dict):
+        return {escaped(k): escaped(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [escaped(v) for v in data]
+    return data
+
+
+#: C0 and C1 control characters and DEL, as Python writes them escaped.
+_ESCAPES = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7f, 0xa0))}
+
+
 def add_allow_empty_option(parser: argparse.ArgumentParser) -> None:
     """Add ``--allow-empty``: an instrument that recorded no sample is a warning, not a failure (exit 1)."""
     parser.add_argument("--allow-empty", action="store_true",
