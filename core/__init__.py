@@ -72,7 +72,8 @@ if TYPE_CHECKING:
 #: Public name -> the sub-module that defines it (imported when the name is first used).
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
          "execute": "algorithms", "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params",
-         "identifier_problem": "params", "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
+         "identifier_problem": "params", "get_registry": "registry", "Registry": "registry", "Session": "session",
+         "ResultData": "session",
          "StreamData": "session", "Node": "session", "is_hdf5": "store.files",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
