@@ -209,7 +209,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         data = None
     if data is None or _too_deep(data, 0):
         raise ValidationError([Problem("", f"tables or arrays nest deeper than {MAX_DEPTH} levels; a recipe needs "
-                                       "a few (see docs/recipes.md)", file)])
+                                       "a few (see docs/ARCHITECTURE.md, Recipes)", file)])
     for item in overrides:
         keys, value = parse_override(item)
         _apply_override(data, keys, value)
@@ -328,7 +328,8 @@ def output_problems(recipe: Recipe, session: Path, overwrite: bool = False) -> l
     for key, given, kind in recipe.outputs:
         target = Path(given).resolve()  # follows every link on the way, as writing would
         if not any(target.is_relative_to(folder) for folder in folders):
-            problems.append(Problem(key, f"{given!r} is outside the recipe's folder ({folders[0]}) and the session "
+            leads = f" (through a link: {str(target)!r})" if str(target) != given else ""
+            problems.append(Problem(key, f"{given!r}{leads} is outside the recipe's folder ({folders[0]}) and the session "
                                     f"file's ({folders[1]}); name a {kind} inside one of them", str(recipe.path)))
         elif target.exists() and target.is_dir() != (kind == "folder"):
             problems.append(Problem(key, f"{given!r} is a {'folder' if target.is_dir() else 'file'}; name a {kind}",

@@ -50,6 +50,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
         fed by ``dask worker ADDRESS`` on each machine; its workers must see the session files
         at the same paths (a shared file system).
     """
+    if scheduler:
+        _reachable(scheduler)  # before importing Dask: an answer in one round trip
     from distributed import Client, LocalCluster
 
     from .worker_setup import OneLibraryThread
@@ -57,7 +59,6 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
     # Dask logs every worker and connection at INFO; a command's output keeps to its own errors.
     logging.getLogger("distributed").setLevel(logging.ERROR)
     if scheduler:
-        _reachable(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
