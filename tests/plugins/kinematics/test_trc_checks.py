@@ -79,3 +79,15 @@ def test_a_header_matching_its_columns_is_read_without_warning(tmp_path: Path) -
         warnings.simplefilter("error")
         d = read_trc(p)
     assert d.points.shape == (2, 3, 3) and np.isnan(d.points[1, 2]).all()
+
+
+def test_an_import_step_name_is_an_identifier(tmp_path: Path) -> None:
+    """The step's ``name`` names ``/markers/<name>``: checked when the recipe is validated."""
+    from tests.support import run_cli
+
+    p = _trc(tmp_path / "m.trc", 1, [_row(1, 1)])
+    recipe = tmp_path / "r.toml"
+    recipe.write_text(f'[[steps]]\naction = "import_markers"\nfile = "{p}"\nname = "/truth/fake"\n')
+    proc = run_cli("run", str(recipe), "--check")
+    assert proc.returncode == 2
+    assert f"{recipe}: steps.0.name: '/truth/fake' is not a label" in proc.stderr
