@@ -36,15 +36,17 @@ def add_allow_port_url_option(parser: argparse.ArgumentParser) -> None:
                              "socket://, loop:// or rfc2217://")
 
 
-def printable(text: str) -> str:
+def printable(text: str, lines: bool = False) -> str:
     r"""``text`` with control characters escaped (``\x1b``), for text read from a file that reaches a
     terminal: an ESC or OSC sequence in a file from elsewhere must not move the cursor, retitle the
-    window or hide what follows.
+    window or hide what follows. ``lines``: keep line ends (text shown in a pane of several lines).
 
     >>> printable("ana" + chr(27) + "]0;pwned" + chr(7) + " smith")
     'ana\\x1b]0;pwned\\x07 smith'
+    >>> printable("a" + chr(10) + "b", lines=True) == "a" + chr(10) + "b"
+    True
     """
-    return text.translate(_ESCAPES)
+    return text.translate(_ESCAPES_BUT_LINES if lines else _ESCAPES)
 
 
 def escaped(data: Any) -> Any:
@@ -65,6 +67,7 @@ def escaped(data: Any) -> Any:
 
 #: C0 and C1 control characters and DEL, as Python writes them escaped.
 _ESCAPES = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7f, 0xa0))}
+_ESCAPES_BUT_LINES = {c: text for c, text in _ESCAPES.items() if c != ord("\n")}
 
 
 def add_allow_empty_option(parser: argparse.ArgumentParser) -> None:
