@@ -11,11 +11,12 @@ from typing import Any
 from ..errors import SessionExistsError
 
 
-def add_overwrite_option(parser: argparse.ArgumentParser, option: str = "--out") -> None:
-    """Add ``--overwrite``: a new session replaces the file named by ``option`` if it exists."""
+def add_overwrite_option(parser: argparse.ArgumentParser, option: str = "--out", also: str = "") -> None:
+    """Add ``--overwrite``: a new session replaces the file named by ``option`` if it exists (``also``:
+    what else it replaces, said in the help)."""
     parser.add_argument("--overwrite", action="store_true",
                         help=f"replace an existing {option} file with a new session (the old file stays "
-                             "until the new session holds data)")
+                             f"until the new session holds data){also}")
 
 
 @contextlib.contextmanager

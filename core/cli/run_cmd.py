@@ -40,7 +40,7 @@ DEMO_EXAMPLE = "instruments.rssr.settings.scene_frames=6"
 
 def _common(p: argparse.ArgumentParser, out_help: str, example: str) -> None:
     p.add_argument("--out", type=Path, metavar="FILE.h5", help=out_help)
-    add_overwrite_option(p)  # with --session: replace the files the recipe writes (figures, CSV)
+    add_overwrite_option(p, also="; also replace the files the recipe writes (figures, CSV), with --session too")
     add_allow_port_url_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=f"override a recipe value, e.g. {example} (repeatable)")

@@ -26,7 +26,7 @@ def add(sub: argparse._SubParsersAction) -> None:
                    help="recipe to open live, or session file to browse (default: the demonstration recipe)")
     p.add_argument("--out", type=Path, metavar="FILE.h5",
                    help="session file a recipe records into (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)")
-    add_overwrite_option(p)
+    add_overwrite_option(p, also="; also replace the files the recipe writes (figures, CSV)")
     add_allow_port_url_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a recipe value, e.g. instruments.sensor.settings.rate=50 (repeatable)")
