@@ -39,3 +39,15 @@ def test_info_and_tree_escape_control_characters(tmp_path: Path) -> None:
     # JSON keeps the text as it is (JSON escapes control characters itself)
     data = json.loads(run_cli("session", "info", str(path), "--json").stdout)
     assert data["attributes"]["operator"] == HOSTILE
+
+
+def test_the_summary_of_run_on_another_labs_session_is_escaped(tmp_path: Path) -> None:
+    """``mirrorlab run RECIPE --session FILE`` ends with a summary of FILE's groups and their descriptions."""
+    path = tmp_path / "other_lab.h5"
+    with Session.create(path) as s:
+        s.write_group("report", {"pairs": [1, 2]}, {"description": "summary\x1b]0;owned\x07"})
+    recipe = tmp_path / "wait.toml"
+    recipe.write_text('[[steps]]\naction = "wait"\nseconds = 0\n')
+    proc = run_cli("run", str(recipe), "--session", str(path), "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    assert "  /report: 1 dataset (summary\\x1b]0;owned\\x07)\n" in proc.stdout and "\x1b" not in proc.stdout
