@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from .events import EventBus
     from .figures import figures_folder, save_figure
     from .hookspecs import hookimpl
-    from .params import Parameter, ParameterSet
+    from .params import Parameter, ParameterSet, identifier_problem
     from .registry import Registry, get_registry
     from .session import Node, ResultData, Session, StreamData
     from .steps import ALGORITHM_TABLES, AlgorithmStep, Step, algorithm_tables
@@ -72,7 +72,8 @@ if TYPE_CHECKING:
 #: Public name -> the sub-module that defines it (imported when the name is first used).
 _LAZY = {"Algorithm": "algorithms", "Port": "algorithms", "ResultRef": "algorithms", "RunContext": "algorithms",
          "execute": "algorithms", "hookimpl": "hookspecs", "Parameter": "params", "ParameterSet": "params",
-         "get_registry": "registry", "Registry": "registry", "Session": "session", "ResultData": "session",
+         "identifier_problem": "params", "get_registry": "registry", "Registry": "registry", "Session": "session",
+         "ResultData": "session",
          "StreamData": "session", "Node": "session", "is_hdf5": "store.files",
          "StreamSpec": "streams", "Block": "streams", "Controller": "controllers",
          "ControllerContext": "controller_runtime", "Step": "steps", "ALGORITHM_TABLES": "steps",
@@ -92,7 +93,7 @@ __all__ = [
     "ResultRef", "RunContext", "ScreenEntry", "Session", "SessionClock", "SessionError", "SessionExistsError", "Step",
     "StoppedOnRequest", "StreamSpec", "Subcommands", "ValidationError", "add_overwrite_option", "add_parameter_options",
     "algorithm_tables", "collected", "execute", "existing_path", "get_registry", "hookimpl", "parameter_type", "plain",
-    "figures_folder", "progress_bar", "save_figure", "schema",
+    "figures_folder", "identifier_problem", "progress_bar", "save_figure", "schema",
     "Node", "StreamData", "is_hdf5",
 ]
 

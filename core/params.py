@@ -65,6 +65,40 @@ _UNITS: dict[str, tuple[str, float]] = {
 
 _TYPE_NAMES = {int: "int", float: "float", bool: "bool", str: "str", Path: "path"}
 
+#: What a label that becomes an HDF5 group name (an instrument's, a controller's, an imported marker
+#: set's) must be: one path component, never ``/``, ``.``, ``..``, empty or with control characters.
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_-]*")
+#: C0 and C1 control characters (ESC, NUL, newline, DEL...): never in text a user types for the file.
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f]")
+
+
+def identifier_problem(text: object) -> str | None:
+    """Why ``text`` cannot name an HDF5 group of the session (``None`` if it can).
+
+    >>> identifier_problem("cam_1") is None
+    True
+    >>> identifier_problem("/truth/fake")
+    "'/truth/fake' is not a label: use a letter or '_', then letters, digits, '_' or '-' (e.g. 'cam_1')"
+    """
+    if isinstance(text, str) and IDENTIFIER.fullmatch(text):
+        return None
+    return f"{text!r} is not a label: use a letter or '_', then letters, digits, '_' or '-' (e.g. 'cam_1')"
+
+
+def control_problem(text: str) -> str | None:
+    """Why ``text`` cannot be stored as free text (``None`` if it can): a control character, which
+    would move the cursor or recolour the terminal of whoever prints it.
+
+    >>> control_problem("ana") is None
+    True
+    >>> print(control_problem("a" + chr(27) + "[2Jb"))
+    holds the control character '\\x1b' at character 2; write plain text
+    """
+    found = _CONTROL.search(text)
+    if found is None:
+        return None
+    return f"holds the control character {found.group()!r} at character {found.start() + 1}; write plain text"
+
 
 @functools.cache
 def _pint() -> Any:
@@ -153,6 +187,11 @@ class Parameter:
         The value names a file or folder (a ``str``; type ``pathlib.Path`` implies it): a recipe
         resolves a relative one against the recipe's own folder, whatever the working folder
         (:func:`mirrorlab.core.recipes.load_recipe`); elsewhere it is used as given.
+    output
+        ``"file"`` or ``"folder"`` if the value names a file or folder written to (implies ``path``):
+        a recipe may name one only inside its own folder or the session file's, and an existing
+        file (a folder holding files) only with ``--overwrite``
+        (:func:`mirrorlab.core.recipes.output_problems`).
 
     Examples
     --------
@@ -173,10 +212,15 @@ class Parameter:
     live: bool = False
     shape: tuple[int | None, ...] | None = None
     path: bool = False
+    output: str = ""
 
     def __post_init__(self) -> None:
         if self.type not in _TYPE_NAMES:
             raise TypeError(f"parameter {self.name!r}: unsupported type {self.type!r}")
+        if self.output not in ("", "file", "folder"):
+            raise ValueError(f"parameter {self.name!r}: output must be 'file' or 'folder', not {self.output!r}")
+        if self.output:
+            object.__setattr__(self, "path", True)
         if self.type is Path:
             object.__setattr__(self, "path", True)
         elif self.path and self.type is not str:

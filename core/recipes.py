@@ -36,6 +36,13 @@ A relative path in a setting that names a file or folder (a :class:`Parameter` w
 a motion file, a frame folder, a figures folder) is relative to the recipe's own folder, whatever
 the working folder, in every table: instrument settings, controller settings, ``[world]`` and steps
 (also when given with ``--set``).
+
+A recipe stays inside: what it writes (a :class:`Parameter` with ``output``: a figures folder, a
+CSV file) is inside its own folder or the session file's and replaces nothing without
+``--overwrite`` (:func:`output_problems`); an instrument's ``port`` is a device path, ``socket://``,
+``loop://`` or ``rfc2217://`` unless ``--allow-port-url``; instrument and controller labels, which
+name HDF5 groups, are identifiers (:data:`~mirrorlab.core.params.IDENTIFIER`); the session's
+description and operator hold no control characters.
 """
 
 from __future__ import annotations
@@ -51,8 +58,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .algorithms import AlgorithmExecutor
+from .devices.transport import port_problem
 from .errors import MirrorlabError, PluginError, Problem, StoppedOnRequest, ValidationError
-from .params import Parameter, ParameterSet
+from .params import Parameter, ParameterSet, control_problem, identifier_problem
 from .registry import Registry, get_registry
 from .session import SIMULATOR_OPTIONS, Session
 
@@ -72,6 +80,9 @@ INSTRUMENT_KEYS = ParameterSet(
               help="seconds of reconnect attempts after a lost connection before the instrument fails (0: never)"),
 )
 CONTROLLER_TABLES = ("settings", "inputs", "instruments")
+#: How deep tables and arrays of a recipe may nest: a real recipe needs 4 (a list of points in a
+#: step); far deeper ones only exhaust Python's recursion in the TOML parser or the JSON copy.
+MAX_DEPTH = 32
 
 
 @dataclass
@@ -117,6 +128,8 @@ class Recipe:
     steps: list[StepPlan] = field(default_factory=list)
     controllers: list[ControllerPlan] = field(default_factory=list)
     world: dict[str, Any] | None = None
+    #: What the recipe writes: (key, path, "file" or "folder") of every :attr:`Parameter.output` it sets.
+    outputs: list[tuple[str, str, str]] = field(default_factory=list)
 
     def default_output(self, root: Path | None = None) -> Path:
         """``sessions/out/<recipe>-<UTC timestamp>.h5`` next to the recipe's folder."""
@@ -134,6 +147,11 @@ def parse_override(text: str) -> tuple[list[str], Any]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    except RecursionError:  # deeper than the parser goes
+        value = None
+    if value is None or _too_deep(value, key.count(".") + 1):
+        raise ValidationError([Problem("--set " + key.strip(), f"the value nests deeper than {MAX_DEPTH} levels of "
+                                       "tables and arrays; give a plain value")])
     return key.strip().split("."), value
 
 
@@ -166,11 +184,13 @@ def _apply_override(data: dict[str, Any], keys: list[str], value: Any) -> None:
 
 
 def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Registry | None = None,
-                analysis: bool = False) -> Recipe:
+                analysis: bool = False, allow_port_url: bool = False) -> Recipe:
     """Read, override and validate a recipe; raise :class:`ValidationError` listing every problem.
 
     ``analysis``: the recipe is to run on an existing session (:func:`run_analysis`), so it may
-    declare no instruments and no step that records.
+    declare no instruments and no step that records. ``allow_port_url``: a port may be any pyserial
+    URL (``--allow-port-url``), not only a device path, ``socket://``, ``loop://`` or ``rfc2217://``.
+    What the recipe writes is checked against the session's folder by :func:`output_problems`.
     """
     path = Path(path)
     file = str(path)
@@ -185,6 +205,11 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ValidationError([Problem("", f"not a TOML recipe: {exc}; fix the TOML syntax there", file)]) from None
+    except RecursionError:  # deeper than the parser goes
+        data = None
+    if data is None or _too_deep(data, 0):
+        raise ValidationError([Problem("", f"tables or arrays nest deeper than {MAX_DEPTH} levels; a recipe needs "
+                                       "a few (see docs/ARCHITECTURE.md, Recipes)", file)])
     for item in overrides:
         keys, value = parse_override(item)
         _apply_override(data, keys, value)
@@ -198,10 +223,15 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
                                     "world, steps", file))
     session, more = SESSION_KEYS.problems(_table(data, "session", problems, file), "session", file)
     problems += more
+    problems += [Problem(f"session.{key}", reason, file) for key in ("description", "operator")
+                 if (reason := control_problem(session.get(key, "")))]
+    outputs: list[tuple[str, str, str]] = []
 
     instruments: list[InstrumentPlan] = []
     for label, table in _table(data, "instruments", problems, file).items():
         where = f"instruments.{label}"
+        if reason := identifier_problem(label):  # it names the group /instruments/<label>
+            problems.append(Problem(where, f"{reason}; it names the instrument's group in the session file", file))
         if not isinstance(table, Mapping):
             problems.append(Problem(where, "must be a table", file))
             continue
@@ -220,6 +250,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         settings, more = cls.parameters.problems(beside(folder, _table(table, "settings", problems, file, where),
                                                         cls.parameters), f"{where}.settings", file)
         problems += more
+        outputs += _outputs(f"{where}.settings", settings, cls.parameters)
+        if values["port"] and not allow_port_url and (reason := port_problem(values["port"])):
+            problems.append(Problem(f"{where}.port", reason, file))
         sim_table = _table(table, "simulator", problems, file, where)
         simulator, more = SIMULATOR_OPTIONS.problems(sim_table, f"{where}.simulator", file)
         problems += more
@@ -233,9 +266,9 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         instruments.append(InstrumentPlan(label, values["plugin"], values["simulate"], values["port"],
                                           values["timeout"], values["reconnect"], settings, simulator))
 
-    world = _world(data, instruments, registry, problems, file, folder) if "world" in data else None
+    world = _world(data, instruments, registry, problems, file, folder, outputs) if "world" in data else None
     controllers = [plan for label, table in _table(data, "controllers", problems, file).items()
-                   if (plan := _controller_plan(label, table, instruments, registry, problems, file, folder))]
+                   if (plan := _controller_plan(label, table, instruments, registry, problems, file, folder, outputs))]
 
     steps: list[StepPlan] = []
     raw_steps = data.get("steps", [])
@@ -256,6 +289,7 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
         rest = beside(folder, {k: v for k, v in table.items() if k != "action"}, step_cls.parameters)
         values, more = step_cls.validate(rest, where, file, registry, labels)
         problems += more
+        outputs += _outputs(where, values, step_cls.parameters)
         if analysis and step_cls.records:
             problems.append(Problem(f"{where}.action", f"{step_cls.name!r} records from instruments; a recipe run on "
                                     "an existing session (--session) holds analysis steps only", file))
@@ -272,7 +306,65 @@ def load_recipe(path: str | Path, overrides: Sequence[str] = (), registry: Regis
     if problems:
         raise ValidationError(problems)
     return Recipe(path, text, list(overrides), data, session["description"], session["operator"],
-                  instruments, steps, controllers, world)
+                  instruments, steps, controllers, world, outputs)
+
+
+def _outputs(where: str, values: Mapping[str, Any], params: ParameterSet) -> list[tuple[str, str, str]]:
+    """(key, path, "file" or "folder") of each output parameter ``values`` sets (see :attr:`Recipe.outputs`)."""
+    return [(f"{where}.{name}", str(value), params[name].output) for name, value in values.items()
+            if name in params and params[name].output and value]
+
+
+def output_problems(recipe: Recipe, session: Path, overwrite: bool = False) -> list[Problem]:
+    """What is wrong with the files and folders ``recipe`` writes (:attr:`Recipe.outputs`) for the
+    session file ``session``: each must be inside the recipe's folder or the session file's (after
+    following symbolic links: a link out of them is outside), and an existing file, or a folder
+    already holding files, is replaced only with ``overwrite``.
+
+    A recipe from another lab can name any path; this keeps what it writes where the user looks.
+    """
+    folders = [recipe.path.resolve().parent, session.resolve().parent]
+    problems = []
+    for key, given, kind in recipe.outputs:
+        target = Path(given).resolve()  # follows every link on the way, as writing would
+        if not any(target.is_relative_to(folder) for folder in folders):
+            leads = f" (through a link: {str(target)!r})" if str(target) != given else ""
+            problems.append(Problem(key, f"{given!r}{leads} is outside the recipe's folder ({folders[0]}) and the session "
+                                    f"file's ({folders[1]}); name a {kind} inside one of them", str(recipe.path)))
+        elif target.exists() and target.is_dir() != (kind == "folder"):
+            problems.append(Problem(key, f"{given!r} is a {'folder' if target.is_dir() else 'file'}; name a {kind}",
+                                    str(recipe.path)))
+        elif not overwrite and (target.exists() if kind == "file" else _holds_files(target)):
+            problems.append(Problem(key, f"{given!r} already {'exists' if kind == 'file' else 'holds files'}; add "
+                                    f"--overwrite to replace {'it' if kind == 'file' else 'them'}, or name another "
+                                    f"{kind}", str(recipe.path)))
+    return problems
+
+
+def _holds_files(folder: Path) -> bool:
+    return folder.is_dir() and any(folder.iterdir())
+
+
+def check_outputs(recipe: Recipe, session: Path, overwrite: bool = False) -> None:
+    """Raise :class:`ValidationError` with the :func:`output_problems` of ``recipe``, if any."""
+    if problems := output_problems(recipe, session, overwrite):
+        raise ValidationError(problems)
+
+
+def _too_deep(value: Any, depth: int) -> bool:
+    """Whether ``value`` (parsed TOML at nesting level ``depth``) nests deeper than :data:`MAX_DEPTH`.
+
+    >>> _too_deep({"a": [[1]]}, 0), _too_deep([1], MAX_DEPTH)
+    (False, True)
+    """
+    stack = [(value, depth)]
+    while stack:  # a loop, not recursion: the point is to survive what Python's recursion would not
+        node, level = stack.pop()
+        if isinstance(node, Mapping | list):
+            if level >= MAX_DEPTH:
+                return True
+            stack.extend((item, level + 1) for item in (node.values() if isinstance(node, Mapping) else node))
+    return False
 
 
 def beside(folder: Path, table: Mapping[str, Any], params: ParameterSet) -> dict[str, Any]:
@@ -296,7 +388,7 @@ def beside(folder: Path, table: Mapping[str, Any], params: ParameterSet) -> dict
 
 
 def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry: Registry,
-           problems: list[Problem], file: str, folder: Path) -> dict[str, Any] | None:
+           problems: list[Problem], file: str, folder: Path, outputs: list[tuple[str, str, str]]) -> dict[str, Any] | None:
     """Validate ``[world]`` against the world parameters of the recipe's simulated instruments."""
     table = _table(data, "world", problems, file)
     sets: dict[int, ParameterSet] = {}
@@ -312,14 +404,18 @@ def _world(data: Mapping[str, Any], instruments: list[InstrumentPlan], registry:
     for params in sets.values():
         typed, more = params.problems(beside(folder, table, params), "world", file)
         problems += more
+        outputs += _outputs("world", typed, params)
         values.update(typed)
     return values
 
 
 def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], registry: Registry,
-                     problems: list[Problem], file: str, folder: Path) -> ControllerPlan | None:
+                     problems: list[Problem], file: str, folder: Path,
+                     outputs: list[tuple[str, str, str]]) -> ControllerPlan | None:
     """Validate ``[controllers.<label>]``: plugin, settings, and bindings to the recipe's instruments."""
     where = f"controllers.{label}"
+    if reason := identifier_problem(label):  # it names the group /controllers/<label>
+        problems.append(Problem(where, f"{reason}; it names the controller's group in the session file", file))
     if not isinstance(table, Mapping):
         problems.append(Problem(where, "must be a table", file))
         return None
@@ -336,6 +432,7 @@ def _controller_plan(label: str, table: Any, instruments: list[InstrumentPlan], 
     problems += more
     if more:
         return None
+    outputs += _outputs(f"{where}.settings", settings, cls.parameters)
     inputs = {k: str(v) for k, v in _table(table, "inputs", problems, file, where).items()}
     bound = {k: str(v) for k, v in _table(table, "instruments", problems, file, where).items()}
     plans = {p.label: p for p in instruments}

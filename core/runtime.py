@@ -25,7 +25,7 @@ from .controller_runtime import ControllerRunner, bind
 from .controllers import Controller
 from .devices import Instrument, SerialInstrument, SimulatedWorld, SimulatorServer
 from .errors import Problem, SessionError, ValidationError
-from .params import Parameter, ParameterSet
+from .params import Parameter, ParameterSet, identifier_problem
 from .registry import Registry
 from .snapshot import ControllerSnapshot, InstrumentSnapshot, RecorderSnapshot, SessionSnapshot
 from .store.recorder import Recorder
@@ -102,6 +102,7 @@ class DeviceRuntime:
             Reconnect budget: seconds of attempts after a lost connection before the instrument is
             ``failed`` (``None``: keep trying; 0: never reconnect).
         """
+        _require_label(label, "instrument")
         with self.lock:
             self.store.require_writable("add an instrument")
             if label in self.instruments or self.store.exists(f"instruments/{label}"):
@@ -255,6 +256,7 @@ class DeviceRuntime:
         """
         with self.lock:
             self.store.require_writable("add a controller")
+            _require_label(label, "controller")
             if label in self.controllers or label in self.instruments:
                 raise SessionError(f"{label!r} already names an instrument or controller of this session; "
                                    "pick another label")
@@ -571,3 +573,10 @@ class DeviceRuntime:
             for label in list(self._simulators):
                 self._stop_simulator(label)
         return error
+
+
+def _require_label(label: str, kind: str) -> None:
+    """Raise :class:`ValidationError` unless ``label`` may name the group of an instrument or controller
+    (``/instruments/<label>``): ``"/truth/x"`` or ``"."`` would write elsewhere in the file."""
+    if reason := identifier_problem(label):
+        raise ValidationError([Problem(f"{kind} label", reason)])

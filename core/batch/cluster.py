@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
@@ -21,6 +22,19 @@ class ClusterError(MirrorlabError):
     """The Dask scheduler could not be reached or has no workers."""
 
 
+def _reachable(scheduler: str) -> None:
+    """Raise :class:`ClusterError` at once if nothing listens at ``scheduler`` (``tcp://HOST:PORT``, as
+    :func:`~mirrorlab.core.batch.options.scheduler_address` gives it): Dask's client retries a refused
+    connection until its timeout, 10 s of waiting for an answer that cannot come."""
+    host, _, port = scheduler.partition("://")[2].rpartition(":")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        raise ClusterError(f"no Dask scheduler answers at {scheduler} ({exc.strerror or exc}); start one with "
+                           "`dask scheduler` and workers with `dask worker ADDRESS`, or drop --scheduler "
+                           "for a local cluster") from None
+
+
 @contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None) -> Iterator[Client]:
     """A client on the scheduler at ``scheduler``, else on a new ``LocalCluster``.
@@ -36,6 +50,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None) -> Ite
         fed by ``dask worker ADDRESS`` on each machine; its workers must see the session files
         at the same paths (a shared file system).
     """
+    if scheduler:
+        _reachable(scheduler)  # before importing Dask: an answer in one round trip
     from distributed import Client, LocalCluster
 
     from .worker_setup import OneLibraryThread

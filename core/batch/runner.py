@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import MirrorlabError, Problem, SessionExistsError, ValidationError
-from ..recipes import load_recipe, run_analysis
+from ..recipes import check_outputs, load_recipe, run_analysis
 from ..session import Session
 from .executors import Executor
 
@@ -127,9 +127,11 @@ def run_batch(client: Client, recipe: Path, inputs: Sequence[Path], out_dir: Pat
     """
     from distributed import as_completed
 
-    load_recipe(recipe, overrides, analysis=True)
+    plan = load_recipe(recipe, overrides, analysis=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     outputs = plan_outputs(inputs, out_dir, overwrite)
+    for output in outputs[:1]:  # every copy is in out_dir: what the recipe writes must be there or beside it
+        check_outputs(plan, output, overwrite)
     futures = {client.submit(process_file, str(recipe.resolve()), list(overrides), str(src.resolve()),
                              str(dst.resolve()), dict(provenance), retries=retries, pure=False): i
                for i, (src, dst) in enumerate(zip(inputs, outputs))}

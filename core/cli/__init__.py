@@ -21,6 +21,7 @@ from typing import Any, NoReturn
 from ..errors import MirrorlabError, MirrorlabWarning, ValidationError
 from ..version import mirrorlab_version
 from . import commands
+from .outputs import printable
 
 EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
 
@@ -124,8 +125,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_FAILURE
     except ValidationError as exc:
-        for problem in exc.problems:
-            print(f"mirrorlab: error: {problem}", file=sys.stderr)
+        for problem in exc.problems:  # a key or value from the input may hold terminal escapes: shown escaped
+            print(f"mirrorlab: error: {printable(str(problem))}", file=sys.stderr)
         if debug:
             raise
         return EXIT_USAGE

@@ -8,13 +8,14 @@ from pathlib import Path
 from typing import Any
 
 from ..algorithms import Algorithm
+from ..devices.transport import port_problem
 from ..errors import Problem, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
 from .commands import named_after
 from .options import add_parameter_options, collected, existing_path
-from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice
+from .outputs import add_allow_empty_option, add_allow_port_url_option, add_overwrite_option, cli_advice
 from .progress import progress_bar
 from .run_cmd import print_summary
 
@@ -81,7 +82,8 @@ def add(sub: argparse._SubParsersAction, argv: Sequence[str] | None = None) -> N
         p.add_argument("--seconds", type=duration, default=RECORD_SECONDS, metavar="S",
                        help=f"how long to record [s] (default {RECORD_SECONDS:g}; 0 = until every source has "
                             "ended, as in a recipe's acquire step; Ctrl-C stops an endless source)")
-        p.add_argument("--port", help="device path or pyserial URL")
+        p.add_argument("--port", help="device path, socket://HOST:PORT, loop:// or rfc2217://HOST:PORT")
+        add_allow_port_url_option(p)
         p.add_argument("--simulate", action="store_true", help="use the plugin's simulator")
         p.add_argument("--fast", action="store_true", help="simulator clock FAST instead of REAL")
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -131,6 +133,8 @@ def analyze(args: argparse.Namespace) -> int:
 
 
 def record(args: argparse.Namespace) -> int:
+    if args.port and not args.allow_port_url and (reason := port_problem(args.port)):
+        raise ValidationError([Problem("--port", reason)])
     with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
         with Session.create(args.out, description=f"mirrorlab record {args.instrument_name}",
                             overwrite=args.overwrite) as s:

@@ -12,11 +12,19 @@ from pathlib import Path
 
 from ..batch.options import add_cluster_options, positive_int
 from ..errors import Problem, ValidationError
-from ..recipes import Recipe, load_recipe, run_analysis, run_recipe
+from ..recipes import Recipe, check_outputs, load_recipe, run_analysis, run_recipe
 from ..session import Session
 from ..store.integrity import instrument_failures
 from .options import existing_path
-from .outputs import add_allow_empty_option, add_overwrite_option, cli_advice, group_contents, plural
+from .outputs import (
+    add_allow_empty_option,
+    add_allow_port_url_option,
+    add_overwrite_option,
+    cli_advice,
+    escaped,
+    group_contents,
+    plural,
+)
 from .progress import progress_bar
 
 _BUNDLED = resources.files("mirrorlab.sessions")
@@ -33,7 +41,8 @@ DEMO_EXAMPLE = "instruments.rssr.settings.scene_frames=6"
 
 def _common(p: argparse.ArgumentParser, out_help: str, example: str) -> None:
     p.add_argument("--out", type=Path, metavar="FILE.h5", help=out_help)
-    add_overwrite_option(p)
+    add_overwrite_option(p, also="; also replace the files the recipe writes (figures, CSV), with --session too")
+    add_allow_port_url_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help=f"override a recipe value, e.g. {example} (repeatable)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -67,7 +76,9 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     analysis = getattr(args, "session", None) is not None
-    recipe = load_recipe(args.recipe, args.overrides, analysis=analysis)
+    recipe = load_recipe(args.recipe, args.overrides, analysis=analysis, allow_port_url=args.allow_port_url)
+    out = args.session if analysis else args.out or recipe.default_output(getattr(args, "default_root", None))
+    check_outputs(recipe, out, args.overwrite)
     if args.check:
         print(f"{args.recipe}: ok ({plural(len(recipe.instruments), 'instrument')}, "
               f"{plural(len(recipe.steps), 'step')})")
@@ -77,7 +88,6 @@ def run(args: argparse.Namespace) -> int:
     if args.workers or args.scheduler or args.chunk_frames:
         raise ValidationError([Problem("--workers", "--workers, --scheduler and --chunk-frames go with --session "
                                        "(an analysis on an existing session)")])
-    out = args.out or recipe.default_output(getattr(args, "default_root", None))
 
     def on_session(session: Session) -> None:
         session.events.subscribe(on_event)
@@ -110,8 +120,8 @@ def restore_interrupt() -> None:
 
 
 def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
-    if args.out or args.overwrite:
-        raise ValidationError([Problem("--session", "appends to that file: --out and --overwrite do not apply")])
+    if args.out:
+        raise ValidationError([Problem("--session", "appends to that file: --out does not apply")])
     with ExitStack() as stack:
         executor = None
         if args.workers or args.scheduler:
@@ -130,10 +140,13 @@ def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
 def demo(args: argparse.Namespace) -> int:
     """The recording recipe into a new session, then the analysis recipe on it: one session file."""
     analysis_overrides = [o for o in args.overrides if o.startswith("steps.")]
-    acquire = load_recipe(DEMO_ACQUIRE, [o for o in args.overrides if o not in analysis_overrides])
+    acquire = load_recipe(DEMO_ACQUIRE, [o for o in args.overrides if o not in analysis_overrides],
+                          allow_port_url=args.allow_port_url)
     analysis = load_recipe(DEMO_ANALYSIS, analysis_overrides, analysis=True)
     default = acquire.default_output(Path.cwd() / DEMO_OUTPUT)
     out = args.out or default.with_name(default.name.replace(DEMO_ACQUIRE.stem, DEMO_NAME, 1))
+    for recipe in (acquire, analysis):
+        check_outputs(recipe, out, args.overwrite)
     try:
         with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
             def subscribe(session: Session) -> None:
@@ -153,7 +166,7 @@ def print_summary(path: Path, allow_empty: bool | None = None) -> int:
     and so is one that recorded no sample at all (its source delivered nothing), or with
     ``allow_empty`` a warning (0)."""
     with Session.open(path) as s:
-        info = s.describe()
+        info = escaped(s.describe())  # a file from elsewhere (--session) may hold terminal escapes
         failures = [] if allow_empty is None else instrument_failures(s.log())
     print(f"session {info['attributes']['session_id']} [{info['attributes']['status']}] -> {path}")
     for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:

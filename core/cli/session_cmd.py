@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import Problem, SessionError, ValidationError
+from ..params import control_problem
 from ..session import Session
 from ..store import files
 from ..store.reader import file_tree
 from .options import existing_path
-from .outputs import group_contents, plural
+from .outputs import escaped, group_contents, plural, printable
 
 
 def add(sub: argparse._SubParsersAction) -> None:
@@ -52,6 +53,9 @@ def add(sub: argparse._SubParsersAction) -> None:
 
 
 def new(args: argparse.Namespace) -> int:
+    if problems := [Problem(f"--{key}", reason) for key in ("operator", "description")
+                    if (reason := control_problem(getattr(args, key)))]:
+        raise ValidationError(problems)
     with Session.create(args.file, operator=args.operator, description=args.description):
         pass
     print(f"created {args.file}")
@@ -65,6 +69,7 @@ def info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(data, indent=2, default=str))
         return 0
+    data = escaped(data)  # a file from another lab may hold terminal escapes (JSON escapes them itself)
     a = data["attributes"]
     if data["writer"]:
         state = f"  (being recorded right now by {data['writer']}: read through SWMR)"
@@ -131,7 +136,7 @@ def tree(args: argparse.Namespace) -> int:
     for e in items:
         depth = e["path"].count("/") - 1
         detail = f"  {e['shape']} {e['dtype']}" if e["type"] == "dataset" else "/"
-        print("  " * depth + e["path"].rsplit("/", 1)[-1] + detail)
+        print("  " * depth + printable(e["path"].rsplit("/", 1)[-1]) + detail)
     return 0
 
 

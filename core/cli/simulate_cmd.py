@@ -106,6 +106,11 @@ def simulate(args: argparse.Namespace) -> int:
     if args.pty is not None and not args.pty.parent.is_dir():
         raise ValidationError([Problem("--pty", f"folder {args.pty.parent} does not exist; give a path in an "
                                        "existing folder (the pseudo-terminal is linked there)")])
+    if args.pty is not None:  # the link (and its temporary PATH.new) replaces what is there, and goes at exit
+        taken = [p for p in (args.pty, args.pty.with_name(args.pty.name + ".new")) if p.exists() and not p.is_symlink()]
+        if taken:
+            raise ValidationError([Problem("--pty", f"{taken[0]} exists and is not a link: it would be replaced, "
+                                           "then deleted at exit; give a new path (an old pty link is fine)")])
     if args.baud is not None and not 50 <= args.baud <= 10_000_000:
         raise ValidationError([Problem("--baud", f"{args.baud} is not a line speed; give 50...10000000 baud "
                                                  f"(the devices' line runs at {LINE_BAUD})")])

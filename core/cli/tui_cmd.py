@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import SessionError
 from .options import existing_path
-from .outputs import add_overwrite_option, cli_advice
+from .outputs import add_allow_port_url_option, add_overwrite_option, cli_advice
 from .run_cmd import DEMO_ACQUIRE, DEMO_OUTPUT, print_summary
 
 #: Suffixes of session files (anything else is read as a recipe).
@@ -26,7 +26,8 @@ def add(sub: argparse._SubParsersAction) -> None:
                    help="recipe to open live, or session file to browse (default: the demonstration recipe)")
     p.add_argument("--out", type=Path, metavar="FILE.h5",
                    help="session file a recipe records into (default: out/<recipe>-<UTC time>.h5 in the recipe's folder)")
-    add_overwrite_option(p)
+    add_overwrite_option(p, also="; also replace the files the recipe writes (figures, CSV)")
+    add_allow_port_url_option(p)
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a recipe value, e.g. instruments.sensor.settings.rate=50 (repeatable)")
     p.set_defaults(func=run)
@@ -42,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         root = Path.cwd() / DEMO_OUTPUT if path is None else None  # the demo writes under ./sessions/out
         with cli_advice("--out"):
-            console = Console.from_recipe(path or DEMO_ACQUIRE, args.out, args.overrides, args.overwrite, root)
+            console = Console.from_recipe(path or DEMO_ACQUIRE, args.out, args.overrides, args.overwrite, root,
+                                          allow_port_url=args.allow_port_url)
     if not args.debug:  # the log pane shows the session's events; a stray log line would tear the screen
         logging.getLogger("mirrorlab").setLevel(logging.CRITICAL)
     app = MirrorlabApp(console)

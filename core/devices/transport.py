@@ -54,6 +54,32 @@ class SerialPort(Protocol):
         ...
 
 
+#: The pyserial URL schemes a port may use without ``--allow-port-url``: byte streams to a device or
+#: a simulator. pyserial has others (``spy://`` logs to any file it is given, ``alt://`` loads
+#: another back end, ``hwgrep://`` opens whatever device matches), which a recipe from elsewhere
+#: could use to write files or reach devices it does not name.
+PORT_SCHEMES = ("socket", "loop", "rfc2217")
+
+
+def port_problem(port: str) -> str | None:
+    """Why ``port`` is refused without ``--allow-port-url`` (``None``: a device path or a plain URL).
+
+    pyserial reads anything holding ``://`` as a URL, whatever its case, and anything else as a path.
+
+    >>> port_problem("/dev/ttyUSB0") is None, port_problem("socket://127.0.0.1:5000") is None
+    (True, True)
+    >>> port_problem("spy://loop://?file=/tmp/x")
+    "'spy://loop://?file=/tmp/x' is a pyserial URL of kind spy://: a port is a device path, socket://, \
+loop:// or rfc2217://; add --allow-port-url to use another pyserial URL"
+    """
+    scheme, sep, _ = port.partition("://")
+    if not sep or scheme.lower() in PORT_SCHEMES:
+        return None
+    return (f"{port!r} is a pyserial URL of kind {scheme}://: a port is a device path, "
+            f"{', '.join(s + '://' for s in PORT_SCHEMES[:-1])} or {PORT_SCHEMES[-1]}://; "
+            "add --allow-port-url to use another pyserial URL")
+
+
 def open_port(url: str, baudrate: int = 115200, timeout: float = 0.05) -> SerialPort:
     """Open a pyserial URL or device path for a driver.
 

@@ -21,6 +21,7 @@ from textual.screen import Screen
 from textual.widget import Widget
 from textual.widgets import DataTable, Header, RichLog, Static
 
+from ..cli.outputs import escaped
 from ..errors import MirrorlabError
 from ..events import Event
 from ..registry import Registry
@@ -156,6 +157,7 @@ class MirrorlabApp(App[int]):
         """The file's description and status for the header; for a session file opened for
         browsing, its recorded streams and results in the log pane."""
         assert isinstance(info, dict)
+        info = escaped(info)  # text of a file from another lab may hold terminal escapes
         self._file_info = (str(info["attributes"].get("description", "")), str(info["attributes"].get("status", "")))
         self._show("#info", self._info_text(self.snapshot))
         if self.model.live:

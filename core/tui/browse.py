@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..cli.outputs import printable
 from ..session import Node
 
 if TYPE_CHECKING:
@@ -28,9 +29,9 @@ PROVENANCE = ("parameters", "inputs", "input_sha256", "executor", "settings", "i
 def label(node: Node) -> str:
     """``xy  (120, 8, 2) float64 px`` for a dataset (a table's type as its number of fields), the name for a group."""
     if not node.is_dataset or node.dtype is None:
-        return node.name
+        return printable(node.name)  # a name from another lab's file may hold terminal escapes
     dtype = f"{len(node.dtype.names)} fields" if node.dtype.names else str(node.dtype)  # a table: short
-    return f"{node.name}  {node.shape} {dtype} {node.unit}".rstrip()
+    return printable(f"{node.name}  {node.shape} {dtype} {node.unit}".rstrip())
 
 
 def _text(value: Any) -> str:
@@ -93,4 +94,4 @@ def describe(session: Session, path: str) -> str:
         lines += ["", "attributes:"] + [f"  {k} = {v}" if "\n" not in v else f"  {k} =\n{v}" for k, v in attrs]
     if node.is_dataset:
         lines += ["", "first values:", preview(session, node)]
-    return "\n".join(lines)
+    return printable("\n".join(lines), lines=True)  # names, attributes, text of a file from elsewhere

@@ -29,7 +29,7 @@ from ..algorithms import ResultRef
 from ..devices import SetStatus
 from ..errors import MirrorlabError, SessionError
 from ..events import Event
-from ..recipes import Recipe, StepPlan, add_devices, check_on_session, load_recipe, recipe_record, run_steps
+from ..recipes import Recipe, StepPlan, add_devices, check_on_session, check_outputs, load_recipe, recipe_record, run_steps
 from ..session import Session
 from ..snapshot import SessionSnapshot
 from ..streams import StreamSpec, Subscription
@@ -115,16 +115,21 @@ class Console:
     # -- opening ---------------------------------------------------------------------------------
     @classmethod
     def from_recipe(cls, path: str | Path, out: Path | None = None, overrides: list[str] | None = None,
-                    overwrite: bool = False, default_root: Path | None = None) -> Console:
+                    overwrite: bool = False, default_root: Path | None = None,
+                    allow_port_url: bool = False) -> Console:
         """A new session at ``out`` (default: ``<recipe>-<UTC time>.h5`` in ``default_root``, or in
         ``out/`` beside the recipe) with the recipe's
         instruments connected and controllers bound, nothing acquiring or recorded.
 
         Raises :class:`~mirrorlab.core.errors.ValidationError` (file, key, problem) for an invalid
-        recipe before anything starts; a device that will not connect leaves no file.
+        recipe, or one that writes outside its folders (:func:`~mirrorlab.core.recipes.check_outputs`),
+        before anything starts; a device that will not connect leaves no file. ``allow_port_url``: as
+        ``--allow-port-url``.
         """
-        recipe = load_recipe(path, overrides or [])
-        session = Session.create(out or recipe.default_output(default_root), operator=recipe.operator,
+        recipe = load_recipe(path, overrides or [], allow_port_url=allow_port_url)
+        out = out or recipe.default_output(default_root)
+        check_outputs(recipe, out, overwrite)
+        session = Session.create(out, operator=recipe.operator,
                                  description=recipe.description, recipe=recipe_record(recipe), overwrite=overwrite)
         try:
             add_devices(session, recipe)

@@ -60,7 +60,7 @@ class TurntableReport(Step):
     parameters = ParameterSet(
         Parameter("instrument", str, "tracker", help="the simulated line_tracker watching the turntable"),
         Parameter("period", float, 1.84, unit="s", bounds=(0.01, 3600.0), help="the turntable's period"),
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", output="folder", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
     instrument_keys = ("instrument",)

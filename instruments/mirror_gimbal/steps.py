@@ -44,7 +44,7 @@ class ActiveMirrorReport(Step):
         Parameter("fixed", str, "", help="a fixed line_tracker beside the mirror (optional)"),
         Parameter("limits", bool, True, help="run the tracking-limit experiment (about 1 s per variant)"),
         Parameter("seed", int, 0, bounds=(0, None), help="seed of the limit experiment's simulator"),
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", output="folder", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
     instrument_keys = ("instrument", "fixed")

@@ -52,7 +52,7 @@ class UltrasonicReport(Step):
         Parameter("ellipse_height", float, 300.0, unit="mm", bounds=(0.0, 2000.0),
                   help="stage ellipse height (a choice)"),
         Parameter("seed", int, 0, bounds=(0, None), help="seed of the stage experiment's simulator"),
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", output="folder", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
     instrument_keys = ("instrument",)

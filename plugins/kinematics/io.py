@@ -7,6 +7,7 @@ and NaN for missing samples (C3D residual < 0, empty TRC cells, Qualisys all-zer
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import os
 import re
@@ -326,6 +327,39 @@ def _check_rows(p: Path, text: str, declared: int | None, rows: int, last: tuple
                                        f"using those {rows} (an excerpt, or a copy cut short)"), stacklevel=3)
 
 
+def _time(cells: list[str]) -> float:
+    """The Time cell of a TRC data row, or NaN when it is empty or no number (only Frame# is read)."""
+    try:
+        return float(cells[1])
+    except (IndexError, ValueError):
+        return math.nan
+
+
+def _refuse_infinite(p: Path, lineno: int, values: list[float], first_column: int) -> None:
+    """:class:`KinematicsIOError` naming the line and column (1-based, ``first_column`` for
+    ``values[0]``) of the first infinite value (``1e999``, ``inf``): no coordinate is infinite,
+    and an inf would pass every filter and mean into the results."""
+    bad = next((k for k, v in enumerate(values) if math.isinf(v)), None)
+    if bad is not None:
+        raise KinematicsIOError(f"{p}: line {lineno}, column {first_column + bad}: value {values[bad]} is not a "
+                                "finite coordinate; correct it, or leave the cell empty for a missing marker")
+
+
+def _check_order(p: Path, order: list[tuple[int, float, float]]) -> None:
+    """:class:`KinematicsIOError` naming the first data row whose frame number (or time, where given)
+    does not increase.
+
+    Refused rather than sorted: the rows are read as frames at the file's rate from the first one,
+    so rows out of order (or repeated) mean an exporter wrote something else than it declares, and
+    sorting would hide it (and could not resolve a repeated frame).
+    """
+    for (line0, frame0, time0), (line1, frame1, time1) in itertools.pairwise(order):
+        if frame1 <= frame0 or time1 <= time0:  # NaN (no Time) compares false
+            what = (f"Frame# {frame1:g} after {frame0:g}" if frame1 <= frame0 else f"Time {time1:g} after {time0:g}")
+            raise KinematicsIOError(f"{p}: line {line1}: {what} (line {line0}); the rows must be in increasing time "
+                                    "order: sort them by Frame# and remove repeated frames")
+
+
 #: The header lines of a TRC file, in order.
 _TRC_HEADER = ("'PathFileType'", "the header keys (DataRate, NumMarkers ...)", "their values",
                "the marker names", "the coordinate labels (X1, Y1, Z1 ...)")
@@ -376,26 +410,24 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
         raise KinematicsIOError(f"{p}: TRC header gives DataRate {rate} and NumMarkers {n_markers}; "
                                 "expected a positive rate and marker count")
     scale = _scale(hdr.get("Units", "mm"), p)
-    names = [x.strip() for x in _split(lines[3], sep)[2:]]
-    labels = [x for x in names if x][:n_markers]
-    labels += [f"M{k + 1}" for k in range(len(labels), n_markers)]
     width = 2 + 3 * n_markers
-    rows = []
-    frames = []
+    rows: list[list[float]] = []  # each as long as its row's values (at most NumMarkers'): padded once sized
+    order: list[tuple[int, float, float]] = []  # (line, Frame#, Time) of each row
     last = None
+    used_columns = 0
     beyond: tuple[int, int] | None = None  # (line, markers) of the first row holding values past NumMarkers
     for lineno, ln in enumerate(lines[5:], start=6):
         cells = _split(ln, sep)
         if not cells or not cells[0].strip():
             continue
         try:
-            frames.append(int(float(cells[0])))
-            vals3 = cells[2:width]
-            vals3 += [""] * (width - 2 - len(vals3))
-            rows.append([float(v) if v.strip() else np.nan for v in vals3])
+            order.append((lineno, float(int(float(cells[0]))), _time(cells)))
+            rows.append([float(v) if v.strip() else np.nan for v in cells[2:width]])
         except (ValueError, OverflowError):
             raise KinematicsIOError(f"{p}: line {lineno} is not a data row of numbers: {ln[:60]!r}") from None
+        _refuse_infinite(p, lineno, rows[-1], 3)
         used = max((k + 1 for k, c in enumerate(cells) if c.strip()), default=0)
+        used_columns = max(used_columns, min(used, width))
         if used > width and beyond is None:
             beyond = (lineno, math.ceil((used - 2) / 3))
         last = (lineno, len(cells), width)
@@ -405,12 +437,29 @@ def read_trc(path: os.PathLike[str] | str) -> MarkerData:
                                                       f"the {declared} frames it declares is there")
         raise KinematicsIOError(f"{p}: TRC file has no data rows")
     _check_rows(p, text, declared, len(rows), last)
+    _check_order(p, order)
     if beyond is not None:
         warnings.warn(MirrorlabWarning(
             f"{p}: line {beyond[0]} holds values of {beyond[1]} markers but the header's NumMarkers is {n_markers}; "
             f"reading the first {n_markers}: correct NumMarkers (line 3) to read the others"), stacklevel=2)
+    # Sized by the columns, not by NumMarkers alone: a header claiming 100 000 markers over 51 markers'
+    # columns would otherwise fill gigabytes with NaN.
+    coordinates = sum(1 for x in _split(lines[4], sep)[2:width] if x.strip())
+    held = min(n_markers, max(math.ceil((used_columns - 2) / 3), math.ceil(coordinates / 3), 1))
+    if held < n_markers:
+        warnings.warn(MirrorlabWarning(
+            f"{p}: the header's NumMarkers is {n_markers} but the coordinate labels (line 5) and the data rows hold "
+            f"columns of {held} markers; reading {held}: correct NumMarkers (line 3)"), stacklevel=2)
+    names = [x.strip() for x in _split(lines[3], sep)[2:]]
+    labels = [x for x in names if x][:held]
+    labels += [f"M{k + 1}" for k in range(len(labels), held)]
     _warn_shared_labels(p, labels)
-    pts = np.asarray(rows, dtype=float).reshape(len(rows), n_markers, 3) * scale
+    pts = np.full((len(rows), held, 3), np.nan)
+    for i, row in enumerate(rows):
+        values = row[:3 * held]
+        pts[i].flat[:len(values)] = values
+    pts *= scale
+    frames = [int(frame) for _, frame, _ in order]
     return MarkerData(labels, rate, pts, frames[0] - 1)
 
 
@@ -467,6 +516,7 @@ def read_qualisys_tsv(path: os.PathLike[str] | str) -> MarkerData:
             rows.append([float(cells[0]), *map(float, cells[2:width])])
         except ValueError:
             raise KinematicsIOError(f"{p}: line {lineno} is not a data row of numbers: {ln[:60]!r}") from None
+        _refuse_infinite(p, lineno, rows[-1][1:], 3)
     if not rows:
         raise KinematicsIOError(f"{p}: the TSV file has no data rows")
     _check_rows(p, text, _declared((hdr.get("NO_OF_FRAMES") or [""])[0]), len(rows), last)

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step, identifier_problem
 
 if TYPE_CHECKING:
     from mirrorlab.core import Registry, Session
@@ -36,6 +36,8 @@ class ImportMarkers(Step):
     @classmethod
     def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
         path = Path(values["file"])
+        if values["name"] and (reason := identifier_problem(values["name"])):  # it names /markers/<name>
+            return [Problem(f"{where}.name", reason, file)]
         if not path.is_file():
             return [Problem(f"{where}.file", f"no such marker file {str(values['file'])!r}", file)]
         if values["format"] == "auto" and path.suffix.lower() not in (".c3d", ".trc", ".tsv"):

@@ -92,7 +92,7 @@ class FourBarReport(Step):
                                               "lengths (the virtual lab writes it); else true_lengths"),
         Parameter("true_lengths", float, (230.0, 100.0, 220.0, 133.0), unit="mm", shape=(4,), bounds=(0.0, None),
                   help="true ground, input, coupler, output lengths when there is no truth in the session"),
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", output="folder", help="folder for the PNG figures (default: <session>-figures)"),
     )
 
     instrument_keys = ("instrument",)
@@ -157,7 +157,7 @@ class WallReport(Step):
     version = "1.0.0"
     description = "print the arc grid, eq. 6.3 family and optimal_wall runs next to the thesis; PNG figures"
     parameters = ParameterSet(
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures)"),
+        Parameter("figures", str, "", output="folder", help="folder for the PNG figures (default: <session>-figures)"),
         Parameter("positions", int, 2000, bounds=(10, 100_000), help="rod positions of the figures and eq. 6.3 family"),
     )
 

@@ -19,7 +19,8 @@ class Report(Step):
     description = "compare the reconstruction and kinematics with /truth; print the summary; save figures"
     parameters = ParameterSet(
         Parameter("instrument", str, help="label of the recorded RSSR camera (its /truth/<label>)"),
-        Parameter("figures", str, "", path=True, help="folder for the PNG figures (default: <session>-figures next to the file)"),
+        Parameter("figures", str, "", output="folder",
+                  help="folder for the PNG figures (default: <session>-figures next to the file)"),
     )
 
     instrument_keys = ("instrument",)

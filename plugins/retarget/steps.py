@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from mirrorlab.core import Parameter, ParameterSet, Problem, Step
+from mirrorlab.core import Parameter, ParameterSet, Problem, Step, identifier_problem
 
 from .algorithms import CHAIN_PARAMETERS, chain_from, read_motion, stream_motion
 from .errors import ChainDefinitionError
@@ -43,13 +43,15 @@ class RetargetStep(Step):
         Parameter("scale", float, 1.0, bounds=(0.0, None), help="mm per file length unit (CMU BVH: 56.444)"),
         Parameter("skip", int, 0, bounds=(0, None), help="leading frames to drop"),
         Parameter("name", str, "", help="group under /retarget (default: the file's stem)"),
-        Parameter("csv", str, "", path=True, help="also write the frames to this CSV file"),
+        Parameter("csv", str, "", output="file", help="also write the frames to this CSV file"),
         *CHAIN_PARAMETERS,
     )
 
     @classmethod
     def check(cls, values: Mapping[str, Any], where: str, file: str | None, registry: Registry) -> list[Problem]:
         problems = []
+        if values["name"] and (reason := identifier_problem(values["name"])):  # it names /retarget/<name>
+            problems.append(Problem(f"{where}.name", reason, file))
         if not values["file"].is_file():
             problems.append(Problem(f"{where}.file", f"no such motion file {str(values['file'])!r}", file))
         try:

@@ -114,3 +114,22 @@ def test_baud_paces_the_simulator_as_the_real_line_would() -> None:
     assert "paced to 9600 baud" in err
     assert len(received) <= (elapsed + 0.01) * 960 + 10    # 10 bits a byte; a 10 ms chunk may go ahead
     assert re.search(rb"\n!OVF [1-9][0-9]*\n", received)
+
+
+def test_pty_refuses_an_existing_path_that_is_not_a_link(tmp_path: Path) -> None:
+    """``--pty EXISTING_FILE`` replaced the file by the pty link, then deleted it at exit."""
+    from tests.support import run_cli
+
+    for taken in (tmp_path / "notes.txt", tmp_path / "tty.new"):
+        taken.write_text("precious\n")
+        link = taken.with_suffix("") if taken.suffix == ".new" else taken
+        proc = run_cli("simulate", "actuator", "--pty", str(link), "--for", "0.2")
+        assert proc.returncode == 2
+        assert (f"mirrorlab: error: --pty: {taken} exists and is not a link: it would be replaced, then deleted at "
+                "exit; give a new path (an old pty link is fine)") in proc.stderr
+        assert taken.read_text() == "precious\n"
+    old = tmp_path / "ttyOLD"
+    old.symlink_to("/dev/pts/no-such-pty")  # left by a simulator that was killed
+    proc = run_cli("simulate", "actuator", "--pty", str(old), "--for", "0.2")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == str(old) and not old.is_symlink()
