@@ -211,6 +211,7 @@ class SessionFile(Reader):
         g.attrs["firmware"] = meta["identity"].get("firmware", "")
         if simulator is not None:
             schema.set_json(g, "simulator", simulator)
+        self.file.flush()  # a process killed while setting up keeps the instruments it had described
 
     def write_controller(self, label: str, cls: type, settings: Mapping[str, Any], inputs: Mapping[str, str],
                          instruments: Mapping[str, str]) -> None:
@@ -336,6 +337,7 @@ class SessionFile(Reader):
                 g.attrs["traceback"] = outcome.traceback
             self.file.flush()  # everything of the run is on disk before the status says so
             g.attrs["status"] = outcome.status
+            self.file.flush()  # and the status too, before anyone is told the run is stored
         except OSError as exc:  # a full disk: the run stays without status, read as "incomplete"
             self.events.emit("error", cls.name, "result_incomplete",
                              f"{g.name}: writing the run failed, it is left without status (incomplete)")
