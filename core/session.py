@@ -67,6 +67,8 @@ class Session:
         self.path: Path = store.path
         self.writable: bool = store.writable
         self.crashed: bool = store.crashed
+        #: What was done to open the file (``""``: nothing), e.g. the open flags a killed process left cleared.
+        self.recovered: str = store.recovered
         self.clock = store.clock
         self.events = store.events
         self.router = self._runtime.router
@@ -116,8 +118,12 @@ class Session:
     def open(cls, path: str | Path, writable: bool = False, registry: Registry | None = None) -> Session:
         """Open an existing session, read-only unless ``writable``.
 
-        A file left open by a crash opens read-only (SWMR) with ``crashed = True``; to write to it,
-        first run ``mirrorlab session close FILE --aborted``.
+        A file left open by a process killed while recording or running an algorithm (SWMR mode)
+        opens read-only through SWMR with ``crashed = True``; a recording that did not finish must be
+        closed (``mirrorlab session close FILE --aborted``) before it is opened ``writable``. A file
+        left flagged open by a process killed at any other moment has its flags cleared in place
+        first (``recovered`` says so); everything that process had flushed is kept. A file that a
+        live process writes raises :class:`SessionError` naming that process.
         """
         registry = registry or get_registry()
         return cls(SessionFile.open(Path(path), writable), registry)

@@ -99,6 +99,8 @@ def info(args: argparse.Namespace) -> int:
             shape = "×".join(map(str, out["shape"])) or "scalar"
             print(f"    {name}: {shape} {out['dtype']}" + (f" [{out['unit']}]" if out["unit"] else ""))
     print(f"  log: {data['log_events']} events")
+    if data["recovered"]:
+        print(f"  note: {data['recovered']}")
     if data["not_utf8"]:
         print(f"  note: text in the file that is not valid UTF-8, shown with \N{REPLACEMENT CHARACTER} for the bytes that "
               f"could not be decoded: {', '.join(data['not_utf8'])}")
@@ -147,6 +149,8 @@ def check(args: argparse.Namespace) -> int:
     else:
         state = "complete" if report.complete else "INCOMPLETE"
         print(f"{report.path}: {state} (status {report.status!r}, schema {report.schema})")
+        for note in report.notes:
+            print(f"  note: {note}")
         for p in report.problems:
             print(f"  - {p}")
         for name, st in report.streams.items():
@@ -165,10 +169,13 @@ def close(args: argparse.Namespace) -> int:
     if report.schema is None or (report.status != "open" and not report.open_for_write):
         raise SessionError(f"{args.file} is not a mirrorlab session that can be closed ({'; '.join(report.problems)}); "
                            "it is left as it is")
+    notes: list[str] = []
     with files.reading(args.file):
-        files.mark_status(args.file, status)
+        files.mark_status(args.file, status, notes)
     repaired = " (repaired the crash-flagged file first)" if report.open_for_write else ""
     print(f"{args.file}: status set to {status}{repaired}")
+    for note in [*report.notes, *notes]:
+        print(f"  note: {note}")
     return 0
 
 

@@ -1,9 +1,13 @@
 """Opening, checking and repairing session files, including files left by a crash or damaged.
 
-A writer killed while in SWMR mode leaves the superblock marked "open for write": a plain
-``h5py.File(path, "r")`` then fails, but ``swmr=True`` opens it with everything flushed before the
-kill. h5py cannot clear those flags, so :func:`repair` copies the readable content into a fresh
-file and atomically replaces the original.
+A writer killed while it has the file open leaves the superblock marked "open for write": a plain
+``h5py.File(path, "r")`` then fails. Killed in SWMR mode (recording, an algorithm running),
+``swmr=True`` still opens it with everything flushed before the kill; killed in normal write mode
+(setting up, previewing, writing results or a report, closing), nothing opens it until the flags
+are cleared. :func:`clear_open_flags` clears them in place as HDF5's ``h5clear -s`` does, once no
+live process has the file (:func:`writer_of`): :func:`open_readonly` does so for a file flagged
+in normal mode, :func:`mark_status` (``session close``) for any flagged file. Everything flushed
+before the kill is kept; the file keeps its inode and permissions.
 
 Every other failure to open or read a file (truncated, bit-damaged, not HDF5, a folder, no
 permission) becomes one typed error in plain words (:func:`os_error`, :func:`reading`), never
@@ -18,10 +22,10 @@ import json
 import os
 import re
 import socket
-import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +38,11 @@ from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, read
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
 OPEN_FOR_WRITE = "file is already open for write"
+#: HDF5's message when a SWMR reader finds such a file flagged by a writer in normal (not SWMR) mode.
+NOT_SWMR = "file is not already open for SWMR writing"
+#: HDF5's private file-access property that ``h5clear -s`` sets (tools/src/h5clear/h5clear.c): an
+#: open for read-write with it set to true zeroes the superblock's status flags.
+CLEAR_STATUS_FLAGS = b"clear_status_flags"
 
 #: Reads of metadata per object in SWMR mode before HDF5 gives up. HDF5's default (100) sleeps
 #: with exponential backoff between attempts: a truncated or bit-damaged file then retries for
@@ -62,6 +71,10 @@ def os_error(path: str | Path, exc: BaseException, action: str = "read") -> Mirr
     becomes a :class:`DamagedFileError`. Never includes HDF5's open flags or buffer addresses.
     """
     code = getattr(exc, "errno", None)
+    if isinstance(exc, OSError) and code in (errno.EAGAIN, errno.EWOULDBLOCK):  # HDF5's file lock
+        return SessionError(f"cannot {action} {path}: it is open for writing in another process "
+                            f"({writer_of(path) or 'HDF5 file lock held'}); wait until that process has "
+                            "finished (or close the file there), then try again")
     if isinstance(exc, OSError) and code in _ADVICE:
         return SessionError(f"cannot {action} {path}: {os.strerror(code)}; {_ADVICE[code]}")
     text = str(exc)
@@ -130,25 +143,42 @@ def _require_file(path: Path) -> None:
         raise SessionError(f"no session file at {path}; check the path")
 
 
+@cache
+def _libhdf5() -> ctypes.CDLL:
+    """The HDF5 library h5py itself uses, for the few calls h5py does not wrap.
+
+    h5p's extension module links h5py's libhdf5 (bundled in ``h5py.libs`` or the one it was built
+    against), so symbols looked up through it resolve in that library, never in another copy.
+    """
+    lib = ctypes.CDLL(h5py.h5p.__file__)
+    lib.H5Pset_metadata_read_attempts.argtypes = [ctypes.c_int64, ctypes.c_uint]
+    lib.H5Pset.argtypes = [ctypes.c_int64, ctypes.c_char_p, ctypes.c_void_p]
+    lib.H5Fget_eoa.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_uint64)]
+    lib.H5Fincrement_filesize.argtypes = [ctypes.c_int64, ctypes.c_uint64]
+    for name in ("H5Pset_metadata_read_attempts", "H5Pset", "H5Fget_eoa", "H5Fincrement_filesize"):
+        getattr(lib, name).restype = ctypes.c_int
+    return lib
+
+
 def _open_swmr(path: Path) -> h5py.File:
     """``h5py.File(path, "r", swmr=True)`` with :data:`SWMR_READ_ATTEMPTS` (h5py has no option)."""
     fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
     fapl.set_libver_bounds(h5py.h5f.LIBVER_V110, h5py.h5f.LIBVER_V110)
-    # h5p's extension module links libhdf5, so the symbol resolves in the library h5py uses.
-    setter = ctypes.CDLL(h5py.h5p.__file__).H5Pset_metadata_read_attempts
-    setter.argtypes, setter.restype = [ctypes.c_int64, ctypes.c_uint], ctypes.c_int
-    if setter(fapl.id, SWMR_READ_ATTEMPTS) < 0:
+    if _libhdf5().H5Pset_metadata_read_attempts(fapl.id, SWMR_READ_ATTEMPTS) < 0:
         raise SessionError(f"this HDF5 library refused {SWMR_READ_ATTEMPTS} metadata read attempts")
     fid = h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
     return h5py.File(fid)
 
 
-def open_readonly(path: str | Path) -> tuple[h5py.File, bool]:
+def open_readonly(path: str | Path, notes: list[str] | None = None) -> tuple[h5py.File, bool]:
     """Open a session file read-only; returns ``(file, crashed)``.
 
-    ``crashed`` is True when the file is still marked open for write by a writer that is gone (or
-    still running): it is then opened in SWMR read mode, which works in both cases. Only that
-    error falls back to SWMR; a truncated, damaged or non-HDF5 file raises
+    ``crashed`` is True when the file is still marked open for write by a writer in SWMR mode that
+    is gone (or still running): it is then opened in SWMR read mode, which works in both cases.
+    A file marked open by a writer in normal mode cannot be read that way: if that writer is gone
+    (:func:`writer_of`), its flags are cleared in place (:func:`clear_open_flags`) and what was
+    done is appended to ``notes``; if it is alive, :class:`SessionError` says who has it. Only
+    these errors get this treatment; a truncated, damaged or non-HDF5 file raises
     :class:`DamagedFileError` at once, other failures a :class:`SessionError` in plain words.
     """
     path = Path(path)
@@ -161,30 +191,110 @@ def open_readonly(path: str | Path) -> tuple[h5py.File, bool]:
     try:
         return _open_swmr(path), True
     except READ_ERRORS as exc:
+        if NOT_SWMR not in str(exc):
+            raise os_error(path, exc) from exc
+    note = clear_open_flags(path)
+    if notes is not None:
+        notes.append(note)
+    try:
+        return h5py.File(path, "r"), False
+    except OSError as exc:
         raise os_error(path, exc) from exc
 
 
-def open_writable(path: str | Path, mode: str = "a") -> h5py.File:
-    """``h5py.File(path, mode, libver=LIBVER)`` with plain errors.
+def clear_open_flags(path: str | Path) -> str:
+    """Clear the "open for write" flags a killed writer left in ``path``'s superblock, in place, as
+    ``h5clear -s`` does; returns the sentence that tells the user so.
+
+    Refuses (:class:`SessionError`) while a process has the file (:func:`writer_of`), and HDF5's
+    own lock makes the read-write open here fail while another process holds the file in normal
+    mode. What the writer had flushed is kept: only the status flags change, and the end of file
+    HDF5 keeps is extended to the file's size if it is shorter, so that closing truncates nothing.
+    The file keeps its inode and permissions. A file HDF5 cannot read then raises
+    :class:`DamagedFileError` as any damaged file does.
+    """
+    path = Path(path)
+    writer = writer_of(path)
+    if writer:
+        raise SessionError(f"{path} is being written right now by {writer}; wait until it has finished")
+    lib = _libhdf5()
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    clear = ctypes.c_bool(True)
+    if lib.H5Pset(fapl.id, CLEAR_STATUS_FLAGS, ctypes.byref(clear)) < 0:
+        raise SessionError(f"{path} is flagged open for write, and this HDF5 library ({h5py.version.hdf5_version}) "
+                           "cannot clear the flags; run `h5clear -s FILE` (Debian package hdf5-tools)")
+    try:
+        fid = h5py.h5f.open(os.fsencode(path), h5py.h5f.ACC_RDWR, fapl=fapl)
+    except READ_ERRORS as exc:
+        raise os_error(path, exc, "repair") from exc
+    try:
+        eoa = ctypes.c_uint64()
+        if lib.H5Fget_eoa(fid.id, ctypes.byref(eoa)) >= 0 and eoa.value < path.stat().st_size:
+            lib.H5Fincrement_filesize(fid.id, 0)  # EOA = max(EOA, EOF): keep bytes written past the stored end
+    finally:
+        fid.close()
+    return (f"{path} was left open for writing by a process that ended; its open flag was cleared "
+            "(everything that process had saved is kept)")
+
+
+def writer_of(path: str | Path) -> str | None:
+    """Which live process writes ``path`` or has it open (``"pid N on HOST"``, ``"pid N"``), or ``None``.
+
+    The recording marker (:func:`live_writer`) names a mirrorlab writer, also one on another host.
+    Any other process of this machine that has the file open (as far as ``/proc`` shows this user)
+    counts too: a writer in SWMR mode holds no lock, and a file system may not support HDF5's locks.
+    """
+    marked = live_writer(path)
+    if marked:
+        return marked
+    try:
+        target = os.stat(path)
+    except OSError:
+        return None
+    me = str(os.getpid())
+    for pid in filter(str.isdigit, _listdir("/proc")):
+        if pid == me:
+            continue
+        for fd in _listdir(f"/proc/{pid}/fd"):
+            try:
+                st = os.stat(f"/proc/{pid}/fd/{fd}")
+            except OSError:  # closed meanwhile, or not ours to see
+                continue
+            if (st.st_dev, st.st_ino) == (target.st_dev, target.st_ino):
+                return f"pid {pid}"
+    return None
+
+
+def _listdir(folder: str) -> list[str]:
+    try:
+        return os.listdir(folder)
+    except OSError:  # no /proc (not Linux), a process that ended, or one we may not inspect
+        return []
+
+
+def open_writable(path: str | Path, mode: str = "a", shown: str | Path | None = None) -> h5py.File:
+    """``h5py.File(path, mode, libver=LIBVER)`` with plain errors (naming ``shown``, default ``path``:
+    a draft's errors name the file it becomes).
 
     ``"w"`` creates (or truncates), ``"w-"`` creates and raises :class:`FileExistsError` if the file
     is there (the caller says what that means), ``"a"`` appends. Creating makes missing folders.
     """
     path = Path(path)
+    shown = path if shown is None else shown
     creating = mode in ("w", "w-")
     if creating:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
         except FileExistsError:  # a file stands where the path needs a folder
-            raise os_error(path, NotADirectoryError(errno.ENOTDIR, "not a directory"), "create") from None
+            raise os_error(shown, NotADirectoryError(errno.ENOTDIR, "not a directory"), "create") from None
         except OSError as exc:
-            raise os_error(path, exc, "create") from exc
+            raise os_error(shown, exc, "create") from exc
     try:
         return h5py.File(path, mode, libver=LIBVER)
     except FileExistsError:
         raise
     except OSError as exc:
-        raise os_error(path, exc, "create" if creating else "write to") from exc
+        raise os_error(shown, exc, "create" if creating else "write to") from exc
 
 
 def lock_path(path: str | Path) -> Path:
@@ -234,6 +344,8 @@ class CheckReport:
     writer: str | None = None
     problems: list[str] = field(default_factory=list)
     streams: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: What was done to open the file (its open flags cleared after a crash), for the user to know.
+    notes: list[str] = field(default_factory=list)
     #: with ``check(data=True)``: whether the file has checksums to verify (``None``: not asked)
     checksums: bool | None = None
 
@@ -245,15 +357,16 @@ class CheckReport:
     def as_dict(self) -> dict[str, Any]:
         return {"path": self.path, "status": self.status, "schema": self.schema,
                 "open_for_write": self.open_for_write, "writer": self.writer, "complete": self.complete,
-                "problems": self.problems, "streams": self.streams, "checksums": self.checksums}
+                "problems": self.problems, "streams": self.streams, "notes": self.notes, "checksums": self.checksums}
 
 
 def check(path: str | Path, data: bool = False) -> CheckReport:
     """Check a session file: schema, status, crash flags, stream consistency, instruments that failed while
     recording, and that every object reads (:mod:`~mirrorlab.core.store.integrity`); with ``data``, also every
     chunk of the checksummed streams."""
-    f, crashed = open_readonly(path)
-    report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path))
+    notes: list[str] = []
+    f, crashed = open_readonly(path, notes)
+    report = CheckReport(str(path), open_for_write=crashed, writer=live_writer(path), notes=notes)
     with f, reading(path):
         report.schema = int(f.attrs["mirrorlab_schema"]) if "mirrorlab_schema" in f.attrs else None
         missing = [a for a in required_root_attrs(report.schema) if a not in f.attrs]
@@ -311,63 +424,28 @@ def check(path: str | Path, data: bool = False) -> CheckReport:
     return report
 
 
-def repair(path: str | Path) -> None:
-    """Rewrite a crashed SWMR file so that it can be opened for writing again.
-
-    Copies every object and attribute readable through SWMR into a new file next to the original
-    and replaces the original atomically; the original is untouched if anything fails.
-    """
-    path = Path(path)
-    src = _open_swmr(path)
-    fd, tmp_name = tempfile.mkstemp(prefix=path.name + ".", suffix=".repair", dir=path.parent)
-    os.close(fd)
-    try:
-        with src, h5py.File(tmp_name, "w", libver=LIBVER) as dst:
-            for key, value in src.attrs.items():
-                dst.attrs[key] = value
-            for name in src:
-                _copy_trimmed(src, dst, name)
-        os.replace(tmp_name, path)
-    except BaseException:
-        Path(tmp_name).unlink(missing_ok=True)
-        raise
-
-
-def _copy_trimmed(src: h5py.Group, dst: h5py.Group, name: str) -> None:
-    """Copy ``src[name]``; stream groups are cut to the common length of ``data`` and ``time``."""
-    obj = src[name]
-    if isinstance(obj, h5py.Group) and "data" in obj and "time" in obj and \
-            obj["data"].shape[0] != obj["time"].shape[0]:
-        g = dst.create_group(name)
-        for k, v in obj.attrs.items():
-            g.attrs[k] = v
-        n = min(obj["data"].shape[0], obj["time"].shape[0])
-        for key in obj:
-            ds = obj[key]
-            new = g.create_dataset(key, data=ds[:n] if key in ("data", "time") else ds[()],
-                                   maxshape=ds.maxshape, chunks=ds.chunks)
-            for k, v in ds.attrs.items():
-                new.attrs[k] = v
-        return
-    if isinstance(obj, h5py.Group):
-        g = dst.create_group(name)
-        for k, v in obj.attrs.items():
-            g.attrs[k] = v
-        for child in obj:
-            _copy_trimmed(obj, g, child)
-        return
-    src.copy(obj, dst, name=name)
-
-
-def mark_status(path: str | Path, status: str) -> None:
-    """Set the root ``status`` of a session that is not being recorded (repairing it if crashed)."""
-    writer = live_writer(path)
+def mark_status(path: str | Path, status: str, notes: list[str] | None = None) -> None:
+    """Set the root ``status`` of a session that nobody writes, first clearing the open flags a
+    killed writer left (in place: :func:`clear_open_flags`; what was done is appended to ``notes``)
+    and cutting each stream's ``data`` and ``time`` to their common length (a crash may leave one
+    longer)."""
+    writer = writer_of(path)
     if writer:
-        raise SessionError(f"{path} is being recorded by {writer}; stop that recording first")
-    f, crashed = open_readonly(path)
+        raise SessionError(f"{path} is being written right now by {writer}; stop that recording first")
+    f, crashed = open_readonly(path, notes)
     f.close()
     if crashed:
-        repair(path)
+        note = clear_open_flags(path)
+        if notes is not None:
+            notes.append(note)
     remove_lock(path)
     with open_writable(path) as f:
+        for group in ("instruments", "controllers"):
+            for _, source in members(f, group):
+                for _, stream in members(source):
+                    if isinstance(stream, h5py.Group) and "data" in stream and "time" in stream:
+                        n = min(stream["data"].shape[0], stream["time"].shape[0])
+                        for ds in (stream["data"], stream["time"]):
+                            if ds.shape[0] > n:
+                                ds.resize(n, axis=0)
         f.attrs["status"] = status

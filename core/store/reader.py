@@ -181,13 +181,15 @@ def _damage_reported(cls: R) -> R:
 
 @_damage_reported
 class Reader:
-    """Read access to an open session ``file`` at ``path`` (``crashed``: opened through SWMR after a crash);
+    """Read access to an open session ``file`` at ``path`` (``crashed``: opened through SWMR after a
+    crash; ``recovered``: what was done to open it, e.g. the open flags of a killed writer cleared);
     a damaged object raises :class:`~mirrorlab.core.errors.DamagedFileError` when read."""
 
-    def __init__(self, path: Path, file: h5py.File, crashed: bool = False) -> None:
+    def __init__(self, path: Path, file: h5py.File, crashed: bool = False, recovered: str = "") -> None:
         self.path = path
         self.file = file
         self.crashed = crashed
+        self.recovered = recovered
 
     # -- the file's objects ------------------------------------------------------------------------
     def _get(self, path: str, kind: type | None = None) -> Any:
@@ -325,7 +327,7 @@ class Reader:
                                "inputs": get_json(g, "inputs", {}),
                                "instruments": get_json(g, "instruments", {}), "streams": _streams(g)}
                        for label, g in files.members(self.file, "controllers")}
-        return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed,
+        return {"path": str(self.path), "attributes": self.attrs, "crashed": self.crashed, "recovered": self.recovered,
                 "writer": files.live_writer(self.path) if self.crashed else None,
                 "instruments": instruments, "controllers": controllers, "groups": self._other_groups(),
                 "results": [{"path": r.path, "status": r.status, "error": r.error, "label": r.label,

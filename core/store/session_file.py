@@ -59,8 +59,8 @@ class SessionFile(Reader):
     """One open session file: :meth:`create` or :meth:`open` it; everything written goes through here."""
 
     def __init__(self, path: Path, file: h5py.File, writable: bool, crashed: bool = False,
-                 draft: Path | None = None) -> None:
-        super().__init__(path, file, crashed)
+                 draft: Path | None = None, recovered: str = "") -> None:
+        super().__init__(path, file, crashed, recovered)
         self.writable = writable
         #: Created here (not opened): closing it without a status closes it ``closed``.
         self.created = draft is not None
@@ -87,11 +87,11 @@ class SessionFile(Reader):
             raise SessionError(f"{path} is a folder; give a file name such as {path / 'session.h5'}")
         # The new file is a draft until it holds something (see commit): written beside an existing
         # file, so that a start that fails neither leaves a file behind nor destroys the old one.
-        draft = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.draft") if path.exists() else path
-        try:
-            f = files.open_writable(draft, "w-")
-        except FileExistsError:
-            raise SessionExistsError(path) from None
+        # A new path gets the draft once its header is flushed: a process killed while HDF5 creates
+        # the file leaves a hidden draft, never a file at `path` that nothing can open.
+        new = not path.exists()
+        draft = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.draft")
+        f = files.open_writable(draft, "w-", shown=path)
         try:
             created = utc_now_iso()
             f.attrs.update({
@@ -109,6 +109,9 @@ class SessionFile(Reader):
             schema.create_log(f)
             _write_config(f, recipe, plugins)
             f.flush()
+            if new:
+                _move_new(draft, path)
+                draft = path
         except BaseException:
             f.close()
             draft.unlink(missing_ok=True)
@@ -117,11 +120,19 @@ class SessionFile(Reader):
 
     @classmethod
     def open(cls, path: Path, writable: bool) -> SessionFile:
-        """An existing session file, read-only unless ``writable`` (see ``Session.open``)."""
-        f, crashed = files.open_readonly(path)
+        """An existing session file, read-only unless ``writable`` (see ``Session.open``).
+
+        A file a killed process left flagged open for write is opened all the same (its flags
+        cleared in place when that is needed to read or write it: :attr:`recovered` says so),
+        except a recording that did not finish, which must be closed first, and a file that a live
+        process is writing.
+        """
+        notes: list[str] = []
+        f, crashed = files.open_readonly(path, notes)
         try:
             with files.reading(path):
                 is_session = "mirrorlab_schema" in f.attrs
+                status = schema.attr_str(f, "status")
         except SessionError:
             f.close()
             raise
@@ -131,10 +142,20 @@ class SessionFile(Reader):
         if writable:
             f.close()
             if crashed:
-                raise SessionError(f"{path} was left open by a recording that did not finish; run "
-                                   f"`mirrorlab session close {path} --aborted` before writing to it")
+                writer = files.writer_of(path)
+                if writer:
+                    raise SessionError(f"{path} is being recorded or analysed right now by {writer}; "
+                                       "wait until it has finished before writing to it")
+                if status == "open":
+                    raise SessionError(f"{path} was left open by a recording that did not finish; run "
+                                       f"`mirrorlab session close {path} --aborted` before writing to it")
+                notes.append(files.clear_open_flags(path))  # an analysis killed while it was shared
+                crashed = False
             f = files.open_writable(path)
-        return cls(path, f, writable, crashed)
+        store = cls(path, f, writable, crashed, recovered=" ".join(notes))
+        if notes:
+            store.events.emit("warning", "session", "open_flag_cleared", store.recovered)
+        return store
 
     # -- writing -----------------------------------------------------------------------------------
     def require_writable(self, what: str) -> None:
@@ -190,6 +211,7 @@ class SessionFile(Reader):
         g.attrs["firmware"] = meta["identity"].get("firmware", "")
         if simulator is not None:
             schema.set_json(g, "simulator", simulator)
+        self.file.flush()  # a process killed while setting up keeps the instruments it had described
 
     def write_controller(self, label: str, cls: type, settings: Mapping[str, Any], inputs: Mapping[str, str],
                          instruments: Mapping[str, str]) -> None:
@@ -315,6 +337,7 @@ class SessionFile(Reader):
                 g.attrs["traceback"] = outcome.traceback
             self.file.flush()  # everything of the run is on disk before the status says so
             g.attrs["status"] = outcome.status
+            self.file.flush()  # and the status too, before anyone is told the run is stored
         except OSError as exc:  # a full disk: the run stays without status, read as "incomplete"
             self.events.emit("error", cls.name, "result_incomplete",
                              f"{g.name}: writing the run failed, it is left without status (incomplete)")
@@ -335,6 +358,21 @@ class SessionFile(Reader):
         self.file.close()
         if self._draft is not None:  # a start that failed before the file held anything
             self._draft.unlink(missing_ok=True)
+
+
+def _move_new(draft: Path, path: Path) -> None:
+    """Rename the file at ``draft`` to ``path``, unless ``path`` exists (:class:`SessionExistsError`);
+    an open HDF5 file follows its inode."""
+    try:
+        os.link(draft, path)  # atomic, and never replaces a file created meanwhile
+    except FileExistsError:
+        raise SessionExistsError(path) from None
+    except OSError:  # a file system without hard links (FAT): the next best, checked then renamed
+        if path.exists():
+            raise SessionExistsError(path) from None
+        os.rename(draft, path)
+        return
+    draft.unlink()
 
 
 def _write_config(f: h5py.File, recipe: Mapping[str, Any], plugins: Mapping[str, Any]) -> None:
