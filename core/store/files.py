@@ -28,6 +28,7 @@ from typing import Any
 import h5py
 
 from ..errors import DamagedFileError, MirrorlabError, SessionError
+from . import lock as writer_lock
 from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, required_root_attrs, run_status
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
@@ -204,24 +205,9 @@ def remove_lock(path: str | Path) -> None:
 
 
 def live_writer(path: str | Path) -> str | None:
-    """Who is recording ``path`` right now (``"pid N on HOST"``), or ``None`` if nobody is.
-
-    A marker left by a killed writer does not count. A writer on another host cannot be checked
-    and is assumed alive (the safe answer: never repair under a live writer).
-    """
-    try:
-        info = json.loads(lock_path(path).read_text())
-    except (OSError, ValueError):
-        return None
-    pid, host = int(info.get("pid", -1)), str(info.get("host", ""))
-    if host == socket.gethostname():
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return None
-        except PermissionError:
-            pass  # exists, owned by someone else
-    return f"pid {pid} on {host}"
+    """Who writes ``path`` right now (``"pid N (mirrorlab run, since HH:MM:SS)"``), or ``None`` if
+    nobody does: the holder of its writer lock (:mod:`.lock`; a killed writer holds none)."""
+    return writer_lock.holder(path)
 
 
 @dataclass
@@ -345,14 +331,16 @@ def _copy_trimmed(src: h5py.Group, dst: h5py.Group, name: str) -> None:
 
 
 def mark_status(path: str | Path, status: str) -> None:
-    """Set the root ``status`` of a session that is not being recorded (repairing it if crashed)."""
-    writer = live_writer(path)
-    if writer:
-        raise SessionError(f"{path} is being recorded by {writer}; stop that recording first")
-    f, crashed = open_readonly(path)
-    f.close()
-    if crashed:
-        repair(path)
-    remove_lock(path)
-    with open_writable(path) as f:
-        f.attrs["status"] = status
+    """Set the root ``status`` of a session that nobody writes (repairing it if crashed), under its
+    writer lock (:class:`~.lock.WriterBusyError` if a live process holds it)."""
+    lock = writer_lock.WriterLock.acquire(path)
+    try:
+        f, crashed = open_readonly(path)
+        f.close()
+        if crashed:
+            repair(path)
+        remove_lock(path)
+        with open_writable(path) as f:
+            f.attrs["status"] = status
+    finally:
+        lock.release()

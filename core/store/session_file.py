@@ -39,6 +39,7 @@ from ..streams import StreamRouter, StreamSpec
 from ..version import distribution_version as _version
 from ..version import mirrorlab_version
 from . import files, schema
+from .lock import WriterLock
 from .reader import Reader
 from .recorder import Recorder
 from .schema import LIBVER
@@ -59,9 +60,10 @@ class SessionFile(Reader):
     """One open session file: :meth:`create` or :meth:`open` it; everything written goes through here."""
 
     def __init__(self, path: Path, file: h5py.File, writable: bool, crashed: bool = False,
-                 draft: Path | None = None) -> None:
+                 draft: Path | None = None, lock: WriterLock | None = None) -> None:
         super().__init__(path, file, crashed)
         self.writable = writable
+        self._lock = lock  # the writer lock of a writable file, released by close()
         #: Created here (not opened): closing it without a status closes it ``closed``.
         self.created = draft is not None
         self._draft = draft  # the file as created, until commit()
@@ -81,10 +83,21 @@ class SessionFile(Reader):
                plugins: Mapping[str, Any], overwrite: bool) -> SessionFile:
         """A new file (status ``open``) with its root attributes, groups, ``/log`` and ``/config``
         (``recipe`` and the provenance, ``plugins`` the installed plugins); see ``Session.create``."""
-        if path.exists() and not overwrite:
-            raise SessionExistsError(path)
         if path.is_dir():
             raise SessionError(f"{path} is a folder; give a file name such as {path / 'session.h5'}")
+        lock = WriterLock.acquire(path)  # before anything else: a live writer's file is never replaced
+        try:
+            return cls._create(path, lock, operator=operator, description=description, recipe=recipe,
+                               plugins=plugins, overwrite=overwrite)
+        except BaseException:
+            lock.release()
+            raise
+
+    @classmethod
+    def _create(cls, path: Path, lock: WriterLock, *, operator: str, description: str, recipe: Mapping[str, Any],
+                plugins: Mapping[str, Any], overwrite: bool) -> SessionFile:
+        if path.exists() and not overwrite:
+            raise SessionExistsError(path)
         # The new file is a draft until it holds something (see commit): written beside an existing
         # file, so that a start that fails neither leaves a file behind nor destroys the old one.
         draft = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.draft") if path.exists() else path
@@ -113,28 +126,35 @@ class SessionFile(Reader):
             f.close()
             draft.unlink(missing_ok=True)
             raise
-        return cls(path, f, True, draft=draft)
+        return cls(path, f, True, draft=draft, lock=lock)
 
     @classmethod
     def open(cls, path: Path, writable: bool) -> SessionFile:
-        """An existing session file, read-only unless ``writable`` (see ``Session.open``)."""
-        f, crashed = files.open_readonly(path)
+        """An existing session file, read-only unless ``writable`` (see ``Session.open``): writable,
+        it is first locked against other writers (:class:`~.lock.WriterLock`)."""
+        lock = WriterLock.acquire(path) if writable and path.is_file() else None  # else open_readonly says why
         try:
-            with files.reading(path):
-                is_session = "mirrorlab_schema" in f.attrs
-        except SessionError:
-            f.close()
+            f, crashed = files.open_readonly(path)
+            try:
+                with files.reading(path):
+                    is_session = "mirrorlab_schema" in f.attrs
+            except SessionError:
+                f.close()
+                raise
+            if not is_session:
+                f.close()
+                raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
+            if writable:
+                f.close()
+                if crashed:
+                    raise SessionError(f"{path} was left open by a recording that did not finish; run "
+                                       f"`mirrorlab session close {path} --aborted` before writing to it")
+                f = files.open_writable(path)
+        except BaseException:
+            if lock is not None:
+                lock.release()
             raise
-        if not is_session:
-            f.close()
-            raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
-        if writable:
-            f.close()
-            if crashed:
-                raise SessionError(f"{path} was left open by a recording that did not finish; run "
-                                   f"`mirrorlab session close {path} --aborted` before writing to it")
-            f = files.open_writable(path)
-        return cls(path, f, writable, crashed)
+        return cls(path, f, writable, crashed, lock=lock)
 
     # -- writing -----------------------------------------------------------------------------------
     def require_writable(self, what: str) -> None:
@@ -332,9 +352,13 @@ class SessionFile(Reader):
     def close(self) -> None:
         """Close the file; a draft (a new file that never held anything) is deleted."""
         self.closed = True
-        self.file.close()
-        if self._draft is not None:  # a start that failed before the file held anything
-            self._draft.unlink(missing_ok=True)
+        try:
+            self.file.close()
+            if self._draft is not None:  # a start that failed before the file held anything
+                self._draft.unlink(missing_ok=True)
+        finally:
+            if self._lock is not None:
+                self._lock.release()
 
 
 def _write_config(f: h5py.File, recipe: Mapping[str, Any], plugins: Mapping[str, Any]) -> None:
