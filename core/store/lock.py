@@ -111,8 +111,8 @@ class WriterLock:
         while True:
             try:
                 fd = os.open(where, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-            except OSError as exc:
-                raise os_error(where, exc, "create") from exc
+            except OSError as exc:  # said of the session file: it is what cannot be written there
+                raise os_error(path, exc, "write to" if path.exists() else "create") from exc
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:

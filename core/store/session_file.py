@@ -235,10 +235,16 @@ class SessionFile(Reader):
         self.write_log()
         self.file.flush()
         self.commit()
-        self.file.swmr_mode = True  # from here on no object or attribute may be created
+        recorder = Recorder(self.file, router, self.events, paths)
+        recorder.prepare()  # a disk too full to record raises here, before SWMR
+        try:
+            self.file.swmr_mode = True  # from here on no object or attribute may be created
+        except BaseException:
+            recorder.spare.unlink(missing_ok=True)
+            raise
         files.write_lock(self.path)  # tells `session check/close` a live writer has the file
-        self.recorder = Recorder(self.file, router, self.events, paths)
-        self.recorder.start()
+        self.recorder = recorder
+        recorder.start()
         return list(paths)
 
     def stop_recording(self) -> Recorder:
