@@ -16,6 +16,7 @@ the file and the process dies at exit in HDF5). Both end the recording with a :c
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import re
@@ -105,8 +106,9 @@ class Recorder:
         self.spare = Path(self.filename + ".spare")
         self._started = time.monotonic()
         self.written: dict[tuple[str, str], int] = defaultdict(int)
-        # Per stream: (data, time, length). Looking datasets up and asking h5py for shapes costs
-        # more than writing small blocks, so both are cached for the recording's lifetime.
+        # Per stream: [data, time, length, sample shape, length at the last flush]. Looking datasets up
+        # and asking h5py for shapes costs more than writing small blocks, so both are cached for the
+        # recording's lifetime.
         self._handles: dict[tuple[str, str], list] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="recorder", daemon=True)
@@ -160,14 +162,17 @@ class Recorder:
             raise self._full(f"{_mb(free)} free, below the reserve of {_mb(reserve)} kept free while recording; "
                              "MIRRORLAB_DISK_RESERVE_MB sets it")
 
-    def _keep_what_was_written(self) -> None:
-        """After HDF5 failed to write on a full disk: free the spare, cut every stream to the samples
-        written completely (a block's ``data`` may have grown without its ``time``) and flush."""
+    def _keep_what_was_flushed(self) -> None:
+        """After HDF5 failed to write on a full disk: free the spare, cut every stream to its length at
+        the last flush (later samples may be lengths without data: HDF5 drops chunks it failed to
+        write) and flush, so that the file can be closed."""
         self.spare.unlink(missing_ok=True)
-        for data, time_ds, n, _ in self._handles.values():
+        for key, handle in self._handles.items():
+            data, time_ds, n, _, flushed = handle
             for ds in (data, time_ds):
-                if ds.shape[0] != n:
-                    ds.resize(n, axis=0)
+                ds.resize(flushed, axis=0)
+            self.written[key] -= n - flushed
+            handle[2] = flushed
         self.file.flush()
 
     def _loop(self) -> None:
@@ -183,6 +188,8 @@ class Recorder:
                 if now - last_flush >= self.flush_interval or stopping:
                     self._write_log()
                     self.file.flush()
+                    for handle in self._handles.values():  # on disk: what a full disk keeps
+                        handle[4] = handle[2]
                     last_flush = now
                     if not stopping:
                         self._check_space()
@@ -192,11 +199,9 @@ class Recorder:
             self.error = exc
             self.router.stop_recording()  # nothing more to queue: the blocks would only overflow
             if disk_full(exc):  # HDF5 could not write: nothing more is written but what closes the file
+                with contextlib.suppress(Exception):  # else the spare was too small: the file keeps its last flush
+                    self._keep_what_was_flushed()
                 self.error = self._full("no space left")
-                try:
-                    self._keep_what_was_written()
-                except Exception as again:  # the spare was not enough: the file keeps what was flushed before
-                    self.error.add_note(f"the last samples could not be kept ({type(again).__name__})")
             message = str(self.error) if isinstance(self.error, DiskFullError) else (
                 f"the recording stopped: writing {self.filename} failed ({exc}); "
                 "free disk space or check the disk, then record into a new session file")
@@ -211,8 +216,9 @@ class Recorder:
             handle = self._handles.get(key)
             if handle is None:
                 g = self.file[self.paths[key]]
-                handle = self._handles[key] = [g["data"], g["time"], g["time"].shape[0], g["data"].shape[1:]]
-            data, time_ds, n, shape = handle
+                n = g["time"].shape[0]
+                handle = self._handles[key] = [g["data"], g["time"], n, g["data"].shape[1:], n]
+            data, time_ds, n, shape, _ = handle
             if len(blocks) == 1:  # the live case: write the block itself, no copy
                 values, times = blocks[0].values.reshape(-1, *shape), blocks[0].times
             else:
