@@ -7,10 +7,16 @@ while readers keep reading it; SIGTERM and SIGHUP then stop the first as its fir
 
 from __future__ import annotations
 
+import fcntl
 import json
+import os
+import pty
 import signal
+import struct
 import subprocess
 import sys
+import termios
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -151,3 +157,49 @@ def test_a_killed_writer_leaves_no_lock_behind(tmp_path: Path) -> None:
                     "--no-progress", fresh=True)
     assert again.returncode == 0, again.stderr
     assert not out.with_name(out.name + ".lock").exists()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_quit_the_console_as_ctrl_q(tmp_path: Path, sig: signal.Signals) -> None:
+    """The console on a real pty, recording (key r): the signal closes the session file cleanly."""
+    out = tmp_path / "console.h5"
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 100, 0, 0))
+    proc = subprocess.Popen([sys.executable, "-m", "mirrorlab.core.cli", "tui", str(LOOP), "--out", str(out)],
+                            stdin=slave, stdout=slave, stderr=slave, cwd=REPO, start_new_session=True,
+                            env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
+    os.close(slave)
+    screen = bytearray()
+    reader = threading.Thread(target=_drain, args=(master, screen), daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + 120
+        while not (out.with_name(out.name + ".lock").exists() and b"Record" in screen):  # the console is up
+            assert proc.poll() is None and time.monotonic() < deadline, bytes(screen)[-2000:]
+            time.sleep(0.1)
+        os.write(master, b"r")
+        _wait_recording(proc, out)
+        time.sleep(0.5)
+        proc.send_signal(sig)
+        assert proc.wait(timeout=120) == 0, bytes(screen)[-2000:]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    with h5py.File(out, "r") as f:
+        assert f.attrs["status"] == "closed" and f["instruments/sensor/angle/data"].shape[0] > 0
+    assert run_cli("session", "check", str(out)).returncode == 0
+    assert not out.with_name(out.name + ".lock").exists()
+
+
+def _drain(fd: int, into: bytearray) -> None:
+    """Read what the console draws (a full pty would block it)."""
+    while True:
+        try:
+            chunk = os.read(fd, 65536)
+        except OSError:  # closed
+            return
+        if not chunk:
+            return
+        into += chunk

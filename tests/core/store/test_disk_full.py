@@ -15,9 +15,9 @@ from pathlib import Path
 
 import h5py
 import pytest
-
 from mirrorlab.core.errors import SessionError
 from mirrorlab.core.store.recorder import RESERVE_FLOOR, RESERVE_SECONDS, reserve_bytes
+
 from tests.support import REPO
 
 MB = 1 << 20
