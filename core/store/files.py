@@ -29,6 +29,7 @@ import h5py
 
 from ..errors import DamagedFileError, MirrorlabError, SessionError
 from . import lock as writer_lock
+from .recorder import spare_path
 from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, required_root_attrs, run_status
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
@@ -340,6 +341,7 @@ def mark_status(path: str | Path, status: str) -> None:
         if crashed:
             repair(path)
         remove_lock(path)
+        spare_path(path).unlink(missing_ok=True)  # left by a killed recording
         with open_writable(path) as f:
             f.attrs["status"] = status
     finally:

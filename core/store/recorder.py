@@ -65,6 +65,12 @@ def reserve_bytes(rate: float) -> int:
     return max(floor, int(RESERVE_SECONDS * rate)) if floor else 0
 
 
+def spare_path(path: str | Path) -> Path:
+    """``<file>.spare``: the room a recording keeps beside session file ``path`` (:data:`SPARE_BYTES`)."""
+    path = Path(path)
+    return path.with_name(path.name + ".spare")
+
+
 def disk_full(exc: BaseException) -> bool:
     """Whether ``exc`` (from h5py or the OS) says the disk or the quota is full."""
     return getattr(exc, "errno", None) in (errno.ENOSPC, errno.EDQUOT) or bool(_FULL.search(str(exc)))
@@ -103,7 +109,7 @@ class Recorder:
         self.error: BaseException | None = None
         self.bytes_written = 0
         self.folder = Path(self.filename).parent
-        self.spare = Path(self.filename + ".spare")
+        self.spare = spare_path(self.filename)
         self._started = time.monotonic()
         self.written: dict[tuple[str, str], int] = defaultdict(int)
         # Per stream: [data, time, length, sample shape, length at the last flush]. Looking datasets up

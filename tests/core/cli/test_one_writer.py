@@ -151,8 +151,10 @@ def test_a_killed_writer_leaves_no_lock_behind(tmp_path: Path) -> None:
     assert out.with_name(out.name + ".lock").exists()  # the file stays; nobody holds its lock
     check = run_cli("session", "check", str(out))
     assert "being recorded right now" not in check.stdout and "killed" in check.stdout, check.stdout
+    assert out.with_name(out.name + ".spare").exists()
     close = run_cli("session", "close", str(out), "--aborted", fresh=True)
     assert close.returncode == 0, close.stderr
+    assert sorted(p.name for p in out.parent.iterdir()) == [out.name]  # no marker, lock or spare left
     again = run_cli("record", "angle_source", "--simulate", "--out", str(out), "--overwrite", "--seconds", "0.5",
                     "--no-progress", fresh=True)
     assert again.returncode == 0, again.stderr
