@@ -58,7 +58,7 @@ def reserve_bytes(rate: float) -> int:
     text = os.environ.get("MIRRORLAB_DISK_RESERVE_MB", "").strip()
     try:
         floor = RESERVE_FLOOR if not text else int(float(text) * (1 << 20))
-    except ValueError:
+    except (ValueError, OverflowError):  # not a number, or inf
         floor = -1
     if floor < 0:
         raise SessionError(f"MIRRORLAB_DISK_RESERVE_MB={text!r}: give megabytes, e.g. 50 (0: no reserve)")

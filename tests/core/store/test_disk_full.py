@@ -125,7 +125,7 @@ def test_the_reserve_is_the_floor_or_seconds_of_data(monkeypatch: pytest.MonkeyP
     assert reserve_bytes(0.0) == 3 * MB
     monkeypatch.setenv("MIRRORLAB_DISK_RESERVE_MB", "0")
     assert reserve_bytes(rate) == 0
-    for bad in ("lots", "-1"):
+    for bad in ("lots", "-1", "inf"):
         monkeypatch.setenv("MIRRORLAB_DISK_RESERVE_MB", bad)
         with pytest.raises(SessionError, match="MIRRORLAB_DISK_RESERVE_MB"):
             reserve_bytes(0.0)
