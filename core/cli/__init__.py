@@ -118,6 +118,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not getattr(args, "func", None):
             parser.print_help()
             return EXIT_USAGE
+        from ..store import lock  # a session file this command writes names it as its writer
+
+        lock.command = f"mirrorlab {args.command}"
         code = int(args.func(args) or EXIT_OK)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return code

@@ -9,7 +9,7 @@ from typing import Any
 
 from ..algorithms import Algorithm
 from ..devices.transport import port_problem
-from ..errors import Problem, ValidationError
+from ..errors import Problem, StoppedOnRequest, ValidationError
 from ..registry import get_registry
 from ..session import Session
 from ..steps import Acquire
@@ -17,7 +17,7 @@ from .commands import named_after
 from .options import add_parameter_options, collected, existing_path
 from .outputs import add_allow_empty_option, add_allow_port_url_option, add_overwrite_option, cli_advice
 from .progress import progress_bar
-from .run_cmd import print_summary
+from .run_cmd import print_summary, restore_interrupt, stop_on_interrupt
 
 #: ``mirrorlab record --seconds`` when not given, s.
 RECORD_SECONDS = 5.0
@@ -135,16 +135,26 @@ def analyze(args: argparse.Namespace) -> int:
 def record(args: argparse.Namespace) -> int:
     if args.port and not args.allow_port_url and (reason := port_problem(args.port)):
         raise ValidationError([Problem("--port", reason)])
-    with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
-        with Session.create(args.out, description=f"mirrorlab record {args.instrument_name}",
-                            overwrite=args.overwrite) as s:
-            s.events.subscribe(on_event)
-            s.add_instrument("dev", args.instrument_name, port=args.port, settings=collected(args),
-                             simulate=args.simulate, simulator={"clock": "FAST" if args.fast else "REAL"})
-            s.record(args.seconds)
-            failed = [label for label, inst in s.instruments.items() if inst.failed is not None]
+    try:
+        with cli_advice("--out"), progress_bar(not args.no_progress) as on_event:
+            with Session.create(args.out, description=f"mirrorlab record {args.instrument_name}",
+                                overwrite=args.overwrite) as s:
+                s.events.subscribe(on_event)
+                stop_on_interrupt(s)
+                with s.operation():  # a stop asked while the instrument connects ends the recording too
+                    s.add_instrument("dev", args.instrument_name, port=args.port, settings=collected(args),
+                                     simulate=args.simulate, simulator={"clock": "FAST" if args.fast else "REAL"})
+                    s.record(args.seconds)
+                failed = [label for label, inst in s.instruments.items() if inst.failed is not None]
+                stopped = s.stop_requested
+    finally:
+        restore_interrupt()
     asked = (f"of the requested {args.seconds:g} s (--seconds)" if args.seconds
              else "until the source ended (--seconds 0)")
     print(f"recorded {s.recorded_seconds:.1f} s {asked}")
+    if stopped:  # as `run` stopped by its first Ctrl-C: the file is closed and complete, the work is not
+        print_summary(args.out)
+        raise StoppedOnRequest(f"stopped on request after {s.recorded_seconds:.1f} s; the session file keeps "
+                               f"everything recorded: {args.out}")
     code = print_summary(args.out, None if failed else args.allow_empty)  # a failure says why it is empty
     return 1 if failed else code

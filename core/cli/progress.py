@@ -33,8 +33,8 @@ def progress_bar(enabled: bool = True) -> Iterator[Any]:
             if event.source not in tasks:
                 tasks[event.source] = bars.add_task(event.source, total=total)
             bars.update(tasks[event.source], completed=event.data.get("done", 0), total=total)
-        elif event.level in ("warning", "error") and event.kind != "result_written":
-            # a failed run is reported by the command that asked for it (once, as its error)
+        elif event.level in ("warning", "error") and event.kind not in ("result_written", "recorder_failed"):
+            # a failed run or recording is reported by the command that asked for it (once, as its error)
             console.print(f"[{'yellow' if event.level == 'warning' else 'red'}]{event.level}[/]: "
                           f"{event.source}: {event.message}", highlight=False, soft_wrap=True)
 

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from contextlib import ExitStack
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from ..batch.options import add_cluster_options, positive_int
 from ..errors import Problem, ValidationError
@@ -101,22 +104,54 @@ def run(args: argparse.Namespace) -> int:
     return print_summary(out, args.allow_empty)
 
 
-def stop_on_interrupt(session: Session) -> None:
-    """First Ctrl-C: ask the session to stop cleanly (the step ends, the file closes, the reason is
-    logged); a second one interrupts at once (the file is closed as aborted)."""
+#: What stops ``run``, ``demo``, ``record`` and ``tui`` as the first Ctrl-C does: Ctrl-C (SIGINT),
+#: ``kill``, ``timeout`` or systemd (SIGTERM), and a closed terminal or SSH session (SIGHUP).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: The handlers :func:`stop_on_interrupt` replaced, put back by :func:`restore_interrupt`.
+_replaced: dict[int, Any] = {}
+
+
+def on_stop_signals(stop: Callable[[str], None]) -> None:
+    """Call ``stop(name)`` on the first of :data:`STOP_SIGNALS` (``name``: ``Ctrl-C``, ``SIGTERM``...); any
+    second one raises :class:`KeyboardInterrupt` (abort at once). A signal ignored when the command started
+    stays ignored (``nohup`` keeps SIGHUP away). :func:`restore_interrupt` puts the handlers back."""
+    def second(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
     def first(signum: int, frame: object) -> None:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        print("\nmirrorlab: stopping after the current step's work ends (Ctrl-C again to abort)", file=sys.stderr)
+        for sig in _replaced:
+            signal.signal(sig, second)
+        stop("Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name)
+
+    if threading.current_thread() is not threading.main_thread():  # signals reach the main thread only
+        return
+    for sig in STOP_SIGNALS:
+        if sig not in _replaced:  # else installed for an earlier session of this command: the original is kept
+            previous = signal.getsignal(sig)
+            if previous is signal.SIG_IGN:
+                continue
+            _replaced[sig] = previous
+        signal.signal(sig, first)
+
+
+def stop_on_interrupt(session: Session) -> None:
+    """First Ctrl-C, SIGTERM or SIGHUP: ask the session to stop cleanly (the step ends, the file closes,
+    the reason is logged); a second one interrupts at once (the file is closed as aborted)."""
+    def stop(name: str) -> None:
+        with contextlib.suppress(OSError):  # after SIGHUP the terminal may be gone
+            print(f"\nmirrorlab: {name}: stopping after the current step's work ends (Ctrl-C again to abort)",
+                  file=sys.stderr)
         session.request_stop()
 
-    if threading.current_thread() is threading.main_thread():  # signals reach the main thread only
-        signal.signal(signal.SIGINT, first)
+    on_stop_signals(stop)
 
 
 def restore_interrupt() -> None:
-    """Ctrl-C raises KeyboardInterrupt again (after :func:`stop_on_interrupt`)."""
+    """Put back the handlers :func:`on_stop_signals` replaced (Ctrl-C raises KeyboardInterrupt again)."""
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for sig, handler in _replaced.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        _replaced.clear()
 
 
 def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
@@ -132,7 +167,13 @@ def _run_on_session(args: argparse.Namespace, recipe: Recipe) -> int:
             executor = ChunkedExecutor(client, {**describe(client), "mode": "chunked frames"},
                                        args.chunk_frames or CHUNK_FRAMES)
         on_event = stack.enter_context(progress_bar(not args.no_progress))
-        run_analysis(recipe, args.session, on_session=lambda s: s.events.subscribe(on_event), executor=executor)
+        stack.callback(restore_interrupt)
+
+        def on_session(session: Session) -> None:
+            session.events.subscribe(on_event)
+            stop_on_interrupt(session)
+
+        run_analysis(recipe, args.session, on_session=on_session, executor=executor)
     print_summary(args.session)
     return 0
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..errors import SessionError
 from .options import existing_path
 from .outputs import add_allow_port_url_option, add_overwrite_option, cli_advice
-from .run_cmd import DEMO_ACQUIRE, DEMO_OUTPUT, print_summary
+from .run_cmd import DEMO_ACQUIRE, DEMO_OUTPUT, on_stop_signals, print_summary, restore_interrupt
 
 #: Suffixes of session files (anything else is read as a recipe).
 SESSION_SUFFIXES = (".h5", ".hdf5")
@@ -48,9 +48,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.debug:  # the log pane shows the session's events; a stray log line would tear the screen
         logging.getLogger("mirrorlab").setLevel(logging.CRITICAL)
     app = MirrorlabApp(console)
+    on_stop_signals(app.quit_on_signal)  # SIGTERM, SIGHUP: quit as ctrl+q does (Ctrl-C is a key in the console)
     try:
         code = app.run()
     finally:
+        restore_interrupt()
         console.close()  # idempotent: ctrl+q already closed it; any other exit closes it here
     if app.close_error:
         raise SessionError(f"{app.close_error}; the session file {console.session.path} was closed aborted")

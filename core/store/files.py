@@ -33,7 +33,9 @@ import h5py
 
 from ..errors import DamagedFileError, MirrorlabError, SessionError
 from . import integrity
+from . import lock as writer_lock
 from .integrity import READ_ERRORS
+from .recorder import spare_path
 from .schema import INCOMPLETE, LIBVER, SCHEMA_VERSION, STATUSES, attr_str, read_log, required_root_attrs, run_status
 
 #: HDF5's message for a file whose superblock says a writer has it open (a live or killed writer).
@@ -240,13 +242,16 @@ def clear_open_flags(path: str | Path) -> str:
 def writer_of(path: str | Path) -> str | None:
     """Which live process writes ``path`` or has it open (``"pid N on HOST"``, ``"pid N"``), or ``None``.
 
-    The recording marker (:func:`live_writer`) names a mirrorlab writer, also one on another host.
+    The writer lock (:func:`live_writer`) names a mirrorlab writer of another process.
     Any other process of this machine that has the file open (as far as ``/proc`` shows this user)
     counts too: a writer in SWMR mode holds no lock, and a file system may not support HDF5's locks.
     """
-    marked = live_writer(path)
-    if marked:
-        return marked
+    return live_writer(path) or _process_with(path)
+
+
+def _process_with(path: str | Path) -> str | None:
+    """Another process of this machine that has ``path`` open (``"pid N"``, as far as ``/proc`` shows
+    this user), or ``None``."""
     try:
         target = os.stat(path)
     except OSError:
@@ -313,24 +318,9 @@ def remove_lock(path: str | Path) -> None:
 
 
 def live_writer(path: str | Path) -> str | None:
-    """Who is recording ``path`` right now (``"pid N on HOST"``), or ``None`` if nobody is.
-
-    A marker left by a killed writer does not count. A writer on another host cannot be checked
-    and is assumed alive (the safe answer: never repair under a live writer).
-    """
-    try:
-        info = json.loads(lock_path(path).read_text())
-    except (OSError, ValueError):
-        return None
-    pid, host = int(info.get("pid", -1)), str(info.get("host", ""))
-    if host == socket.gethostname():
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return None
-        except PermissionError:
-            pass  # exists, owned by someone else
-    return f"pid {pid} on {host}"
+    """Who writes ``path`` right now (``"pid N (mirrorlab run, since HH:MM:SS)"``), or ``None`` if
+    nobody does: the holder of its writer lock (:mod:`.lock`; a killed writer holds none)."""
+    return writer_lock.holder(path)
 
 
 @dataclass
@@ -425,27 +415,33 @@ def check(path: str | Path, data: bool = False) -> CheckReport:
 
 
 def mark_status(path: str | Path, status: str, notes: list[str] | None = None) -> None:
-    """Set the root ``status`` of a session that nobody writes, first clearing the open flags a
-    killed writer left (in place: :func:`clear_open_flags`; what was done is appended to ``notes``)
-    and cutting each stream's ``data`` and ``time`` to their common length (a crash may leave one
-    longer)."""
-    writer = writer_of(path)
-    if writer:
-        raise SessionError(f"{path} is being written right now by {writer}; stop that recording first")
-    f, crashed = open_readonly(path, notes)
-    f.close()
-    if crashed:
-        note = clear_open_flags(path)
-        if notes is not None:
-            notes.append(note)
-    remove_lock(path)
-    with open_writable(path) as f:
-        for group in ("instruments", "controllers"):
-            for _, source in members(f, group):
-                for _, stream in members(source):
-                    if isinstance(stream, h5py.Group) and "data" in stream and "time" in stream:
-                        n = min(stream["data"].shape[0], stream["time"].shape[0])
-                        for ds in (stream["data"], stream["time"]):
-                            if ds.shape[0] > n:
-                                ds.resize(n, axis=0)
-        f.attrs["status"] = status
+    """Set the root ``status`` of a session that nobody writes, under its writer lock
+    (:class:`~.lock.WriterBusyError` if a live process holds it): first clearing the open flags a
+    killed writer left (in place: :func:`clear_open_flags`; what was done is appended to ``notes``),
+    removing the spare a killed recording left, and cutting each stream's ``data`` and ``time`` to
+    their common length (a crash may leave one longer)."""
+    lock = writer_lock.WriterLock.acquire(path)
+    try:
+        writer = writer_of(path)
+        if writer:
+            raise SessionError(f"{path} is being written right now by {writer}; stop that recording first")
+        f, crashed = open_readonly(path, notes)
+        f.close()
+        if crashed:
+            note = clear_open_flags(path)
+            if notes is not None:
+                notes.append(note)
+        remove_lock(path)
+        spare_path(path).unlink(missing_ok=True)  # left by a killed recording
+        with open_writable(path) as f:
+            for group in ("instruments", "controllers"):
+                for _, source in members(f, group):
+                    for _, stream in members(source):
+                        if isinstance(stream, h5py.Group) and "data" in stream and "time" in stream:
+                            n = min(stream["data"].shape[0], stream["time"].shape[0])
+                            for ds in (stream["data"], stream["time"]):
+                                if ds.shape[0] > n:
+                                    ds.resize(n, axis=0)
+            f.attrs["status"] = status
+    finally:
+        lock.release()

@@ -39,6 +39,7 @@ from ..streams import StreamRouter, StreamSpec
 from ..version import distribution_version as _version
 from ..version import mirrorlab_version
 from . import files, schema
+from .lock import WriterLock
 from .reader import Reader
 from .recorder import Recorder
 from .schema import LIBVER
@@ -59,9 +60,10 @@ class SessionFile(Reader):
     """One open session file: :meth:`create` or :meth:`open` it; everything written goes through here."""
 
     def __init__(self, path: Path, file: h5py.File, writable: bool, crashed: bool = False,
-                 draft: Path | None = None, recovered: str = "") -> None:
+                 draft: Path | None = None, recovered: str = "", lock: WriterLock | None = None) -> None:
         super().__init__(path, file, crashed, recovered)
         self.writable = writable
+        self._lock = lock  # the writer lock of a writable file, released by close()
         #: Created here (not opened): closing it without a status closes it ``closed``.
         self.created = draft is not None
         self._draft = draft  # the file as created, until commit()
@@ -81,10 +83,21 @@ class SessionFile(Reader):
                plugins: Mapping[str, Any], overwrite: bool) -> SessionFile:
         """A new file (status ``open``) with its root attributes, groups, ``/log`` and ``/config``
         (``recipe`` and the provenance, ``plugins`` the installed plugins); see ``Session.create``."""
-        if path.exists() and not overwrite:
-            raise SessionExistsError(path)
         if path.is_dir():
             raise SessionError(f"{path} is a folder; give a file name such as {path / 'session.h5'}")
+        lock = WriterLock.acquire(path)  # before anything else: a live writer's file is never replaced
+        try:
+            return cls._create(path, lock, operator=operator, description=description, recipe=recipe,
+                               plugins=plugins, overwrite=overwrite)
+        except BaseException:
+            lock.release()
+            raise
+
+    @classmethod
+    def _create(cls, path: Path, lock: WriterLock, *, operator: str, description: str, recipe: Mapping[str, Any],
+                plugins: Mapping[str, Any], overwrite: bool) -> SessionFile:
+        if path.exists() and not overwrite:
+            raise SessionExistsError(path)
         # The new file is a draft until it holds something (see commit): written beside an existing
         # file, so that a start that fails neither leaves a file behind nor destroys the old one.
         # A new path gets the draft once its header is flushed: a process killed while HDF5 creates
@@ -116,43 +129,50 @@ class SessionFile(Reader):
             f.close()
             draft.unlink(missing_ok=True)
             raise
-        return cls(path, f, True, draft=draft)
+        return cls(path, f, True, draft=draft, lock=lock)
 
     @classmethod
     def open(cls, path: Path, writable: bool) -> SessionFile:
-        """An existing session file, read-only unless ``writable`` (see ``Session.open``).
+        """An existing session file, read-only unless ``writable`` (see ``Session.open``): writable,
+        it is first locked against other writers (:class:`~.lock.WriterLock`).
 
         A file a killed process left flagged open for write is opened all the same (its flags
         cleared in place when that is needed to read or write it: :attr:`recovered` says so),
         except a recording that did not finish, which must be closed first, and a file that a live
         process is writing.
         """
+        lock = WriterLock.acquire(path) if writable and path.is_file() else None  # else open_readonly says why
         notes: list[str] = []
-        f, crashed = files.open_readonly(path, notes)
         try:
-            with files.reading(path):
-                is_session = "mirrorlab_schema" in f.attrs
-                status = schema.attr_str(f, "status")
-        except SessionError:
-            f.close()
+            f, crashed = files.open_readonly(path, notes)
+            try:
+                with files.reading(path):
+                    is_session = "mirrorlab_schema" in f.attrs
+                    status = schema.attr_str(f, "status")
+            except SessionError:
+                f.close()
+                raise
+            if not is_session:
+                f.close()
+                raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
+            if writable:
+                f.close()
+                if crashed:
+                    writer = files.writer_of(path)
+                    if writer:
+                        raise SessionError(f"{path} is being recorded or analysed right now by {writer}; "
+                                           "wait until it has finished before writing to it")
+                    if status == "open":
+                        raise SessionError(f"{path} was left open by a recording that did not finish; run "
+                                           f"`mirrorlab session close {path} --aborted` before writing to it")
+                    notes.append(files.clear_open_flags(path))  # an analysis killed while it was shared
+                    crashed = False
+                f = files.open_writable(path)
+        except BaseException:
+            if lock is not None:
+                lock.release()
             raise
-        if not is_session:
-            f.close()
-            raise SessionError(f"{path} is an HDF5 file but not a mirrorlab session (no mirrorlab_schema)")
-        if writable:
-            f.close()
-            if crashed:
-                writer = files.writer_of(path)
-                if writer:
-                    raise SessionError(f"{path} is being recorded or analysed right now by {writer}; "
-                                       "wait until it has finished before writing to it")
-                if status == "open":
-                    raise SessionError(f"{path} was left open by a recording that did not finish; run "
-                                       f"`mirrorlab session close {path} --aborted` before writing to it")
-                notes.append(files.clear_open_flags(path))  # an analysis killed while it was shared
-                crashed = False
-            f = files.open_writable(path)
-        store = cls(path, f, writable, crashed, recovered=" ".join(notes))
+        store = cls(path, f, writable, crashed, recovered=" ".join(notes), lock=lock)
         if notes:
             store.events.emit("warning", "session", "open_flag_cleared", store.recovered)
         return store
@@ -237,10 +257,16 @@ class SessionFile(Reader):
         self.write_log()
         self.file.flush()
         self.commit()
-        self.file.swmr_mode = True  # from here on no object or attribute may be created
+        recorder = Recorder(self.file, router, self.events, paths)
+        recorder.prepare()  # a disk too full to record raises here, before SWMR
+        try:
+            self.file.swmr_mode = True  # from here on no object or attribute may be created
+        except BaseException:
+            recorder.spare.unlink(missing_ok=True)
+            raise
         files.write_lock(self.path)  # tells `session check/close` a live writer has the file
-        self.recorder = Recorder(self.file, router, self.events, paths)
-        self.recorder.start()
+        self.recorder = recorder
+        recorder.start()
         return list(paths)
 
     def stop_recording(self) -> Recorder:
@@ -355,9 +381,13 @@ class SessionFile(Reader):
     def close(self) -> None:
         """Close the file; a draft (a new file that never held anything) is deleted."""
         self.closed = True
-        self.file.close()
-        if self._draft is not None:  # a start that failed before the file held anything
-            self._draft.unlink(missing_ok=True)
+        try:
+            self.file.close()
+            if self._draft is not None:  # a start that failed before the file held anything
+                self._draft.unlink(missing_ok=True)
+        finally:
+            if self._lock is not None:
+                self._lock.release()
 
 
 def _move_new(draft: Path, path: Path) -> None:

@@ -373,6 +373,15 @@ class MirrorlabApp(App[int]):
         if event.data_table.id == "sources" and event.row_key.value is not None:
             self.action_open_source(str(event.row_key.value))
 
+    def quit_on_signal(self, name: str) -> None:
+        """SIGTERM or SIGHUP (``kill``, a closed terminal or SSH session): quit as ctrl+q does, the session
+        file closed cleanly. Called in the signal handler, in the thread of the app's event loop."""
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:  # the console is not running (yet, or any more): its caller closes the session
+            raise KeyboardInterrupt from None
+        loop.call_soon_threadsafe(self.call_later, self.action_quit)
+
     async def action_quit(self) -> None:
         """Stop acquiring and close the session file (in a thread: the screen stays alive), then exit."""
         if self._quitting:

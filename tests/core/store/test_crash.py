@@ -99,7 +99,7 @@ def test_another_process_reads_the_growing_file(tmp_path: Path, acme_site: Path)
         check = run_cli("session", "check", str(path))
         assert check.returncode == 1 and f"being recorded right now by pid {proc.pid}" in check.stdout
         close = run_cli("session", "close", str(path), "--aborted")
-        assert close.returncode == 1 and "stop that recording first" in close.stderr
+        assert close.returncode == 1 and f"being written by pid {proc.pid}" in close.stderr
     finally:
         proc.kill()
         proc.wait(timeout=10)
