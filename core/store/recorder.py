@@ -98,9 +98,11 @@ class Recorder:
     """
 
     def __init__(self, file: h5py.File, router: StreamRouter, events: EventBus, paths: Mapping[tuple[str, str], str],
-                 flush_interval: float = 0.5, batch_blocks: int = 4096) -> None:
+                 *, path: str | Path, flush_interval: float = 0.5, batch_blocks: int = 4096) -> None:
         self.file = file
-        self.filename = file.filename  # for the failure message: the file may be unusable by then
+        # the session's path, not file.filename: a new session is written under its draft's name until
+        # its header is flushed, and HDF5 keeps the name it opened (for messages and the spare beside it)
+        self.filename = str(path)
         self.paths = dict(paths)
         self.router = router
         self.events = events

@@ -257,7 +257,7 @@ class SessionFile(Reader):
         self.write_log()
         self.file.flush()
         self.commit()
-        recorder = Recorder(self.file, router, self.events, paths)
+        recorder = Recorder(self.file, router, self.events, paths, path=self.path)
         recorder.prepare()  # a disk too full to record raises here, before SWMR
         try:
             self.file.swmr_mode = True  # from here on no object or attribute may be created
