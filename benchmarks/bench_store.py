@@ -9,7 +9,7 @@ Run: ``python benchmarks/bench_store.py [--seconds 30] [--repeats 3]``
   real :class:`~mirrorlab.core.store.recorder.Recorder` thread drains it (timed). Its batch cap is
   set to 1, 64 and 4096 blocks (live trickle, a backlog, its own cap) to cover the batch sizes
   it meets; grouping, concatenation, ``schema.append``, flushing and ``/log`` are its own code;
-* raw h5py: the same datasets (same chunks, the session's ``libver`` bounds, SWMR on), the same data from
+* raw h5py: the same datasets (same chunks and Fletcher-32 checksums, the session's ``libver`` bounds, SWMR on), the same data from
   contiguous arrays, resized and written in exactly the recorder's batches, flushed every 0.5 s.
 
   Printed: median wall time of each and their ratio (goal ≤ 1.25×), for a scalar 1 kHz stream
@@ -85,7 +85,7 @@ def _mirrorlab_append(path: Path, spec: StreamSpec, blocks: list[tuple[np.ndarra
         router.publish("bench", spec.name, times, values)
     publish_us = 1e6 * (time.perf_counter() - t) / len(blocks)
     recorder = _BatchLog(f, router, EventBus(SessionClock()), {("bench", spec.name): f"instruments/bench/{spec.name}"},
-                         flush_interval=FLUSH_INTERVAL, batch_blocks=cap)
+                         path=path, flush_interval=FLUSH_INTERVAL, batch_blocks=cap)
     wall, cpu = time.perf_counter(), time.process_time()
     recorder.start()
     recorder.stop()  # writes everything queued, flushes, joins
@@ -102,8 +102,9 @@ def _raw_append(path: Path, spec: StreamSpec, times: np.ndarray, values: np.ndar
     with h5py.File(path, "w", libver=LIBVER) as f:
         g = f.create_group(f"instruments/bench/{spec.name}")
         data = g.create_dataset("data", shape=(0, *spec.shape), maxshape=(None, *spec.shape),
-                                dtype=spec.dtype, chunks=(chunk, *spec.shape))
-        tds = g.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(max(chunk, 1024),))
+                                dtype=spec.dtype, chunks=(chunk, *spec.shape), fletcher32=True)
+        tds = g.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(max(chunk, 1024),),
+                               fletcher32=True)
         f.flush()
         f.swmr_mode = True
         wall, cpu = time.perf_counter(), time.process_time()

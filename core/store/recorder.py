@@ -224,8 +224,9 @@ class Recorder:
             handle = self._handles.get(key)
             if handle is None:
                 g = self.file[self.paths[key]]
-                n = g["time"].shape[0]
-                handle = self._handles[key] = [g["data"], g["time"], n, g["data"].shape[1:], n]
+                data, time_ds = _appended(g, "data"), _appended(g, "time")
+                n = time_ds.shape[0]
+                handle = self._handles[key] = [data, time_ds, n, data.shape[1:], n]
             data, time_ds, n, shape, _ = handle
             if len(blocks) == 1:  # the live case: write the block itself, no copy
                 values, times = blocks[0].values.reshape(-1, *shape), blocks[0].times
@@ -246,3 +247,20 @@ class Recorder:
         events = self.events.take_pending()
         if events:
             append(self.file["log"], log_rows(events))
+
+
+#: Chunks each recorded dataset keeps in HDF5's chunk cache: the one being filled and the one before.
+CACHED_CHUNKS = 2
+
+
+def _appended(group: h5py.Group, name: str) -> h5py.Dataset:
+    """``group[name]`` opened with a chunk cache of :data:`CACHED_CHUNKS` of its own chunks, full ones
+    evicted first. HDF5's default (1 MiB per dataset, evicting by recency) keeps chunks that appends
+    never touch again, and the process grows for as long as it records (measured on a plain h5py
+    append loop, 16 datasets: +116 MiB over 600 k appends; with a cache of a few chunks it levels off
+    after the first seconds). The chunk being filled stays cached, so appends never re-read it."""
+    chunk = group[name].chunks
+    item = group[name].dtype.itemsize
+    dapl = h5py.h5p.create(h5py.h5p.DATASET_ACCESS)
+    dapl.set_chunk_cache(11, CACHED_CHUNKS * item * int(np.prod(chunk or (1,))), 1.0)
+    return h5py.Dataset(h5py.h5d.open(group.id, name.encode(), dapl=dapl))
