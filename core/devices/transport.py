@@ -9,6 +9,7 @@ garbled bytes, stalls and disconnects through a real byte stream.
 
 from __future__ import annotations
 
+import errno
 import os
 import random
 import select
@@ -91,6 +92,10 @@ def open_port(url: str, baudrate: int = 115200, timeout: float = 0.05) -> Serial
     try:
         return cast(SerialPort, serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=2.0))
     except (serial.SerialException, OSError, ValueError) as exc:
+        if getattr(exc, "errno", None) in (errno.EMFILE, errno.ENFILE):  # not the device: this process or machine
+            raise DeviceDisconnected(
+                f"cannot open port {url!r}: too many files are open ({exc}); the device is not at fault: "
+                "close other sessions or programs, or raise the limit of open files (`ulimit -n`)") from exc
         raise DeviceDisconnected(
             f"cannot open port {url!r}: {exc}. Check that the device is plugged in and powered, "
             "that the path or URL is right (`python -m serial.tools.list_ports` lists ports) "

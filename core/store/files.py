@@ -59,6 +59,8 @@ _ADVICE = {
     errno.EROFS: "that disk is mounted read-only; use another folder",
     errno.ENOSPC: "the disk is full; free some space or use another disk",
     errno.EDQUOT: "your disk quota is used up; free some space or use another disk",
+    errno.EMFILE: "this process has too many files open; close other sessions or raise the limit (`ulimit -n`)",
+    errno.ENFILE: "the system has too many files open; close other programs and try again",
     errno.ENOENT: "check the path",
     errno.ENOTDIR: "a part of the path is a file, not a folder; check the path",
     errno.EISDIR: "that is a folder; give the path of a session file (.h5)",
