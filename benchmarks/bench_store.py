@@ -9,8 +9,9 @@ Run: ``python benchmarks/bench_store.py [--seconds 30] [--repeats 3]``
   real :class:`~mirrorlab.core.store.recorder.Recorder` thread drains it (timed). Its batch cap is
   set to 1, 64 and 4096 blocks (live trickle, a backlog, its own cap) to cover the batch sizes
   it meets; grouping, concatenation, ``schema.append``, flushing and ``/log`` are its own code;
-* raw h5py: the same datasets (same chunks and Fletcher-32 checksums, the session's ``libver`` bounds, SWMR on), the same data from
-  contiguous arrays, resized and written in exactly the recorder's batches, flushed every 0.5 s.
+* raw h5py: the same datasets (same chunks and Fletcher-32 checksums, the session's ``libver``
+  bounds, SWMR on), the same data from contiguous arrays, resized and written in exactly the
+  recorder's batches, flushed every 0.5 s.
 
   Printed: median wall time of each and their ratio (goal ≤ 1.25×), for a scalar 1 kHz stream
   (10-sample blocks) and a 512×344 uint8 image stream (one frame per block).

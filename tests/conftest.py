@@ -15,8 +15,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from tests.support import REQUIRE_DATA_ENV, SHARED_DATA, THIRDPARTY, built_once, pip_install_target
+
+# Property tests and fuzzers (recipes, session files, imports, replies) draw the same examples on every
+# run: a seed fixed per test, so a failure in CI repeats on any machine, and each test's time is bounded
+# by its own max_examples. ``HYPOTHESIS_PROFILE=explore`` draws new random examples instead.
+settings.register_profile("mirrorlab", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "mirrorlab"))
 
 
 def require_shared_data() -> Path:
