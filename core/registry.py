@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.metadata as md
+import threading
 import traceback
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -135,6 +136,7 @@ class Registry:
         self._found: dict[str, dict[str, list[Any]]] = {}  # plugin -> kind -> what it registered
         self._items: dict[str, dict[str, list[Provided]]] = {k: {} for k in REGISTERED}
         self._command_help: dict[str, md.EntryPoint] = {}  # declared command -> where its help is
+        self._loading = threading.RLock()  # see _load
         wanted = [ep for ep in md.entry_points(group=ENTRY_POINT_GROUP)
                   if (builtins if _dist(ep) == BUILTIN_DISTRIBUTION else entry_points)]
         by_module = {(_dist(ep), ep.value): ep.name for ep in wanted}
@@ -157,14 +159,17 @@ class Registry:
 
     # -- loading -----------------------------------------------------------------------------------
     def _load(self, names: Iterable[str]) -> None:
-        """Import the pending plugins ``names`` and collect what they register."""
-        loaded = []
-        for name in names:
-            ep = self._pending.pop(name, None)
-            if ep is not None:
-                self._register(self._plugins[name], ep.load)
-                loaded.append(name)
-        self._collect([name for name in loaded if self._plugins[name].ok])
+        """Import the pending plugins ``names`` and collect what they register. One thread at a time: the
+        console's workers and its screens may need a plugin at once, and two collections interleaved
+        would list its names twice."""
+        with self._loading:
+            loaded = []
+            for name in names:
+                ep = self._pending.pop(name, None)
+                if ep is not None:
+                    self._register(self._plugins[name], ep.load)
+                    loaded.append(name)
+            self._collect([name for name in loaded if self._plugins[name].ok])
 
     def _register(self, info: PluginInfo, loader: Any) -> None:
         info.loaded = True
@@ -189,10 +194,11 @@ class Registry:
                 info.traceback = traceback.format_exc()
                 self.pm.unregister(name=name)  # nothing of a broken plugin runs: no hooks, no wrappers
         for kind in REGISTERED:  # providers of one name in pluggy's call order (tryfirst first)
-            self._items[kind] = {}
+            items: dict[str, list[Provided]] = {}
             for name in self._call_order(HOOKS[kind]):
                 for cls in self._found.get(name, {}).get(kind, ()):
-                    self._items[kind].setdefault(cls.name, []).append(Provided(kind, cls.name, cls, name))
+                    items.setdefault(cls.name, []).append(Provided(kind, cls.name, cls, name))
+            self._items[kind] = items  # whole: a reader in another thread never sees it half built
         for name in names:
             found = self._found.get(name, {})
             self._plugins[name].provides = {kind: [c.name for c in found[kind]] for kind in REGISTERED if found.get(kind)}

@@ -122,28 +122,30 @@ def simulate(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise ConfigurationError(f"cannot serve on {host}:{port} ({exc}); choose another port (0 picks a free "
                                  "one) or an address of this machine") from None
-    with server:
-        print(server.url, flush=True)
-        if transport == "tcp" and not _is_loopback(host):
-            print(f"mirrorlab: warning: listening on {server.url}, reachable from other machines; "
-                  "the line protocol has no authentication: anyone who can connect can command the simulator",
-                  file=sys.stderr, flush=True)
-        until = "stop with Ctrl-C" if args.seconds is None else f"stops after {args.seconds:g} s (or Ctrl-C)"
-        pace = "" if args.baud is None else f", paced to {args.baud} baud"
-        print(f"mirrorlab: serving the {cls.name} simulator ({model.kind}, seed {args.seed}, {args.clock} clock"
-              f"{pace}); {until}", file=sys.stderr, flush=True)
-        done = threading.Event()
-        # Ctrl-C (SIGINT) and SIGTERM both stop it cleanly; SIGINT is handled here even where it was
-        # inherited as ignored (a simulator started from a background job), as it is sent on purpose.
-        previous = {sig: signal.signal(sig, lambda signum, frame: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
+    done = threading.Event()
+    # Ctrl-C (SIGINT) and SIGTERM both stop it cleanly; SIGINT is handled here even where it was
+    # inherited as ignored (a simulator started from a background job), as it is sent on purpose.
+    # Installed, and everything for stderr said, before the address is printed: a client that has
+    # read the address may stop the simulator at once.
+    previous = {sig: signal.signal(sig, lambda signum, frame: done.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with server:
+            if transport == "tcp" and not _is_loopback(host):
+                print(f"mirrorlab: warning: listening on {server.url}, reachable from other machines; "
+                      "the line protocol has no authentication: anyone who can connect can command the simulator",
+                      file=sys.stderr, flush=True)
+            until = "stop with Ctrl-C" if args.seconds is None else f"stops after {args.seconds:g} s (or Ctrl-C)"
+            pace = "" if args.baud is None else f", paced to {args.baud} baud"
+            print(f"mirrorlab: serving the {cls.name} simulator ({model.kind}, seed {args.seed}, {args.clock} clock"
+                  f"{pace}); {until}", file=sys.stderr, flush=True)
+            print(server.url, flush=True)
             deadline = None if args.seconds is None else time.monotonic() + args.seconds
             while not done.wait(0.2 if deadline is None else max(0.0, min(0.2, deadline - time.monotonic()))):
                 if deadline is not None and time.monotonic() >= deadline:
                     break
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-        if done.is_set():
-            print("mirrorlab: simulator stopped", file=sys.stderr)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if done.is_set():
+        print("mirrorlab: simulator stopped", file=sys.stderr)
     return 0
