@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable, Iterable
 from functools import partial
+from typing import Any
 
 from rich.text import Text
 from textual.app import App, ComposeResult, SystemCommand
@@ -157,16 +158,17 @@ class MirrorlabApp(App[int]):
         """The file's description and status for the header; for a session file opened for
         browsing, its recorded streams and results in the log pane."""
         assert isinstance(info, dict)
-        info = escaped(info)  # text of a file from another lab may hold terminal escapes
-        self._file_info = (str(info["attributes"].get("description", "")), str(info["attributes"].get("status", "")))
+        summary: dict[str, Any] = escaped(info)  # text of a file from another lab may hold terminal escapes
+        attributes = summary["attributes"]
+        self._file_info = (str(attributes.get("description", "")), str(attributes.get("status", "")))
         self._show("#info", self._info_text(self.snapshot))
         if self.model.live:
             return
         log = self.query_one("#log", RichLog)
-        for label, inst in [*info["instruments"].items(), *info["controllers"].items()]:
+        for label, inst in [*summary["instruments"].items(), *summary["controllers"].items()]:
             for name, st in inst["streams"].items():
                 log.write(f"{label}/{name}: {st['samples']} samples {st['unit']}".rstrip())
-        for r in info["results"]:
+        for r in summary["results"]:
             log.write(f"{r['path']}: {r['status']}")
 
     # -- refreshing ------------------------------------------------------------------------------
