@@ -113,8 +113,10 @@ _replaced: dict[int, Any] = {}
 
 def on_stop_signals(stop: Callable[[str], None]) -> None:
     """Call ``stop(name)`` on the first of :data:`STOP_SIGNALS` (``name``: ``Ctrl-C``, ``SIGTERM``...); any
-    second one raises :class:`KeyboardInterrupt` (abort at once). A signal ignored when the command started
-    stays ignored (``nohup`` keeps SIGHUP away). :func:`restore_interrupt` puts the handlers back."""
+    second one raises :class:`KeyboardInterrupt` (abort at once). SIGTERM or SIGHUP ignored when the command
+    started stays ignored (``nohup`` keeps SIGHUP away); SIGINT is handled all the same, as the simulators
+    do: a shell starts background jobs with it ignored (``cmd &`` in a script), yet ``kill -INT`` is sent on
+    purpose. :func:`restore_interrupt` puts the handlers back."""
     def second(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
@@ -128,7 +130,7 @@ def on_stop_signals(stop: Callable[[str], None]) -> None:
     for sig in STOP_SIGNALS:
         if sig not in _replaced:  # else installed for an earlier session of this command: the original is kept
             previous = signal.getsignal(sig)
-            if previous is signal.SIG_IGN:
+            if previous is signal.SIG_IGN and sig != signal.SIGINT:
                 continue
             _replaced[sig] = previous
         signal.signal(sig, first)

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import h5py
+import pytest
 
 from tests.support import REPO, run_cli
 
@@ -45,18 +46,27 @@ def test_controller_bindings_fail_the_check_naming_the_key(tmp_path: Path) -> No
         assert proc.returncode == 2 and message in proc.stderr, (override, proc.stderr)
 
 
-def test_first_ctrl_c_stops_cleanly_and_logs_why(tmp_path: Path) -> None:
+@pytest.mark.parametrize("inherited", ["default", "ignored"])
+def test_first_ctrl_c_stops_cleanly_and_logs_why(tmp_path: Path, inherited: str) -> None:
+    """Also when started with SIGINT ignored, as a shell starts a background job (``cmd &`` in a script):
+    a SIGINT sent to it is meant."""
     out = tmp_path / "loop.h5"
+    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if inherited == "ignored" else None
     proc = subprocess.Popen([sys.executable, "-m", "mirrorlab.core.cli", "run", str(LOOP), "--out", str(out),
                              "--no-progress", "--set", "steps.1.seconds=600"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
-    lock = out.with_name(out.name + ".recording")  # the live writer's marker: the acquire step runs
-    deadline = time.monotonic() + 120
-    while not lock.exists():
-        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGINT)
-    stdout, stderr = proc.communicate(timeout=120)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO, preexec_fn=ignore)
+    try:
+        lock = out.with_name(out.name + ".recording")  # the live writer's marker: the acquire step runs
+        deadline = time.monotonic() + 120
+        while not lock.exists():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:  # a failed wait: no recorder left running for 600 s
+            proc.kill()
+            proc.communicate()
     assert proc.returncode == 1, stderr
     assert "stopped on request during step 1 (acquire); later steps were not run" in stderr
     with h5py.File(out, "r") as f:
