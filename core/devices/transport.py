@@ -388,14 +388,18 @@ class PtyEndpoint(Endpoint):
             time.sleep(timeout)
 
     def disconnect(self) -> None:
-        # Closing the master hangs up the client; a fresh pty replaces it behind the same link.
+        # Closing the master hangs up the client; a fresh pty replaces it behind the same link, and
+        # first: a driver that reopens the link the moment it is hung up must find the new pty, not
+        # the old one's slave path (which no longer opens).
         self._interrupt()
         with self._fd_lock, self._io:
-            self._close_master()
-            self._client = False
-            self._new_generation()
+            old, self._master = self._master, -1
             if not self._closed:
                 self._open_pty()
+            if old >= 0:
+                os.close(old)
+            self._client = False
+            self._new_generation()
 
     def close(self) -> None:
         super().close()
