@@ -17,6 +17,7 @@ import stat
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,6 +92,21 @@ PHASES = [
 ]
 
 
+#: Every process :func:`stop_at` started in the running test (see :func:`no_process_left`).
+_started: list[subprocess.Popen[str]] = []
+
+
+@pytest.fixture(autouse=True)
+def no_process_left() -> Iterator[None]:
+    """A test that fails before its kill leaves its process waiting at the crash point: end it."""
+    yield
+    while _started:
+        proc = _started.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=30)
+
+
 def stop_at(spec: str, args: list[str], folder: Path, timeout: float = 60.0) -> subprocess.Popen[str]:
     """Start ``mirrorlab args`` in ``folder`` and return it once it stopped at ``spec``."""
     mark = folder / "stopped-at"
@@ -99,6 +115,7 @@ def stop_at(spec: str, args: list[str], folder: Path, timeout: float = 60.0) -> 
            "PYTHONPATH": os.pathsep.join(filter(None, [str(CRASHPOINT), os.environ.get("PYTHONPATH")]))}
     proc = subprocess.Popen([*MIRRORLAB, *args], cwd=folder, env=env, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _started.append(proc)
     deadline = time.monotonic() + timeout
     while not mark.exists():  # written by the process once it stands at the phase
         if proc.poll() is not None:
